@@ -1,0 +1,13 @@
+"""mindgap: learn what a person wants when that person misjudges how the agent works."""
+
+from .algorithms.gerel import GeReLConfig as GeReLConfig
+from .algorithms.gerel import fit_gerel as fit_gerel
+from .envs.grid import make_grid as make_grid
+from .envs.tabular import TabularMDP as TabularMDP
+from .feedback.demos import random_demonstrations as random_demonstrations
+from .metrics import all_metrics as all_metrics
+from .models.belief import per_state_action as per_state_action
+from .models.belief import tied as tied
+from .teachers.rating import RatingTeacher as RatingTeacher
+
+__version__ = "0.1.0"

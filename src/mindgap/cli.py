@@ -1,0 +1,199 @@
+"""The ``mindgap`` command line.
+
+mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
+mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
+mindgap gerel --domain grid7 --ratings FILE [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+DOMAINS = ("grid7",)
+EXPERIMENTS = ("table1",)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="mindgap", description="Learn what a person wants when they misjudge the robot.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("reproduce", help="run a named experiment of the dissertation")
+    r.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
+    r.add_argument("--fast", action="store_true", help="the quick preset (seconds to minutes)")
+    r.add_argument("--seeds", type=int, help="seeds per setting (overrides the preset)")
+    r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
+    r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
+    r.add_argument("--quiet", action="store_true", help="no progress bars")
+    r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
+
+    g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
+    g.add_argument("--domain", default="grid7", help=f"domain: {', '.join(DOMAINS)}")
+    g.add_argument("--size", type=int, default=7, help="grid side")
+    g.add_argument(
+        "--belief",
+        default="reversed",
+        help="simulated person's belief: reversed, rotated, true, a permutation like 1,0,3,2, or a .npy tensor",
+    )
+    g.add_argument(
+        "--corners", help="reward,penalty corner ids (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right)"
+    )
+    g.add_argument("--seed", type=int, default=0, help="random seed")
+    g.add_argument("--demos", type=int, default=2000, help="number of simulated rated demonstrations")
+    g.add_argument("--length", type=int, default=10, help="steps per simulated demonstration")
+    g.add_argument("--param", default="tied", choices=("tied", "per-sa", "full"), help="belief parameterisation")
+    g.add_argument("--estimator", default="pathwise", choices=("pathwise", "score"), help="ELBO gradient estimator")
+    g.add_argument("--minus", action="store_true", help="GeReL⁻: freeze the belief at the true dynamics")
+    g.add_argument("--max-iter", type=int, help="iteration cap")
+    g.add_argument("--restarts", type=int, help="random restarts")
+    g.add_argument("--ratings", type=Path, help="fit to this ratings CSV instead of a simulated person")
+    g.add_argument("--save-ratings", type=Path, help="also write the simulated ratings in the ratings CSV format")
+    g.add_argument("--out", type=Path, help="folder for posterior.npz and posterior.json")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _enable_compilation_cache() -> None:
+    """Keep compiled XLA programs on disk so reruns skip most compilation."""
+    import os
+
+    import jax
+
+    path = os.environ.get("MINDGAP_JAX_CACHE", str(Path.home() / ".cache" / "mindgap" / "jax"))
+    if path:
+        jax.config.update("jax_compilation_cache_dir", path)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    _enable_compilation_cache()
+    try:
+        if args.command == "reproduce":
+            return _reproduce(args)
+        return _gerel(args)
+    except (ValueError, RuntimeError, FloatingPointError) as e:
+        print(f"mindgap: error: {e}", file=sys.stderr)
+        return 2
+
+
+def _reproduce(args) -> int:
+    if args.name not in EXPERIMENTS:
+        raise ValueError(f"unknown experiment {args.name!r}: choose from {', '.join(EXPERIMENTS)}")
+    from .experiments import table1
+
+    cfg = table1.preset("fast" if args.fast else "full")
+    if args.seeds is not None:
+        if args.seeds < 1:
+            raise ValueError("--seeds must be at least 1")
+        cfg = replace(cfg, seeds=args.seeds, demo_count_seeds=min(cfg.demo_count_seeds, args.seeds))
+    out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
+    shard = None
+    if args.shard:
+        try:
+            i, n = (int(x) for x in args.shard.split("/"))
+        except ValueError:
+            raise ValueError(f"--shard must look like 0/2, got {args.shard!r}") from None
+        if not 0 <= i < n:
+            raise ValueError(f"--shard {args.shard}: need 0 <= I < N")
+        shard = (i, n)
+    summary = table1.run(cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard)
+    if summary is None:
+        print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
+        return 0
+    print(summary["table_md"])
+    print(f"results, curves and figures in {out}/")
+    return 0
+
+
+def _gerel(args) -> int:
+    import jax
+    import numpy as np
+
+    from . import rng
+    from .algorithms.gerel import GeReLConfig, fit_gerel
+    from .envs.grid import ACTIONS, MOVE_NAMES, make_grid
+    from .experiments._runfolder import atomic_write
+    from .experiments.table1 import belief_space
+    from .feedback.demos import random_demonstrations
+    from .feedback.ratings_file import read_ratings, write_ratings
+    from .metrics import all_metrics
+    from .teachers.rating import RatingTeacher
+
+    if args.domain not in DOMAINS:
+        raise ValueError(f"unknown domain {args.domain!r}: choose from {', '.join(DOMAINS)}")
+    corners = None
+    if args.corners:
+        try:
+            corners = tuple(int(c) for c in args.corners.split(","))
+        except ValueError:
+            raise ValueError(f"--corners must be two integers like 1,3, got {args.corners!r}") from None
+    task = make_grid(args.size, args.belief, seed=args.seed, corners=corners)
+    cfg = GeReLConfig(estimator=args.estimator, freeze_belief=args.minus)
+    if args.max_iter:
+        cfg = replace(cfg, max_iter=args.max_iter)
+    if args.restarts:
+        cfg = replace(cfg, restarts=args.restarts, keep=min(cfg.keep, args.restarts))
+    key = rng.key(args.seed)
+    k_demo, k_rate, k_fit = jax.random.split(key, 3)
+    simulated = args.ratings is None
+    if simulated:
+        if args.demos < 1 or args.length < 1:
+            raise ValueError("--demos and --length must be at least 1")
+        teacher = RatingTeacher(task.mdp, task.true_weights, task.human_transitions)
+        rated = teacher.rate(k_rate, random_demonstrations(k_demo, task.mdp, args.demos, args.length))
+        if args.save_ratings:
+            write_ratings(args.save_ratings, rated)
+    else:
+        rated = read_ratings(
+            args.ratings, n_states=task.mdp.n_states, n_actions=task.mdp.n_actions, gamma_max=cfg.gamma_max
+        )
+    space = belief_space(task, args.param)
+    res = fit_gerel(task.mdp, rated, space, cfg, key=k_fit, progress=not args.quiet)
+
+    report = {
+        "domain": args.domain,
+        "size": args.size,
+        "param": args.param,
+        "estimator": args.estimator,
+        "method": "gerel-minus" if args.minus else "gerel",
+        "n_demos": int(rated.demos.count),
+        "mu": [float(x) for x in res.mu],
+        "elbo": float(res.elbo[res.best]),
+        "iterations": res.run.iterations,
+    }
+    print(f"learned reward weights μ = {np.round(res.mu, 3).tolist()}  (ELBO {report['elbo']:.1f})")
+    if args.param == "tied" and not args.minus:
+        theta = res.alpha / res.alpha.sum(-1, keepdims=True)
+        print("believed effect of each action (probability of each move):")
+        print("          " + " ".join(f"{m:>6}" for m in MOVE_NAMES))
+        for a, name in enumerate(ACTIONS):
+            print(f"  {name:<7} " + " ".join(f"{p:6.2f}" for p in theta[a]))
+    if simulated:
+        m = all_metrics(task.mdp, res.mu, res.transitions, task.true_weights, task.human_transitions)
+        report.update(
+            belief=task.belief,
+            corners=list(task.corners),
+            true_weights=[float(x) for x in task.true_weights],
+            metrics=m,
+        )
+        print("metrics: " + "  ".join(f"{k}={v:.3f}" for k, v in m.items()))
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)
+        import io
+
+        buf = io.BytesIO()
+        np.savez(buf, mu=res.mu, alpha=res.alpha, transitions=res.transitions)
+        tmp = args.out / ".posterior.npz.tmp"
+        tmp.write_bytes(buf.getvalue())
+        tmp.replace(args.out / "posterior.npz")
+        atomic_write(args.out / "posterior.json", json.dumps(report, indent=2))
+        print(f"posterior saved to {args.out}/posterior.npz")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
