@@ -1,8 +1,10 @@
 """mindgap: learn what a person wants when that person misjudges how the agent works."""
 
+from . import rng as rng
 from .algorithms.gerel import GeReLConfig as GeReLConfig
 from .algorithms.gerel import fit_gerel as fit_gerel
 from .envs.grid import make_grid as make_grid
+from .envs.grid import move_targets as move_targets
 from .envs.tabular import TabularMDP as TabularMDP
 from .feedback.demos import random_demonstrations as random_demonstrations
 from .metrics import all_metrics as all_metrics

@@ -28,6 +28,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
     r.add_argument("--quiet", action="store_true", help="no progress bars")
+    r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
@@ -85,6 +86,8 @@ def _reproduce(args) -> int:
         raise ValueError(f"unknown experiment {args.name!r}: choose from {', '.join(EXPERIMENTS)}")
     from .experiments import table1
 
+    if args.assemble and (args.fresh or args.shard):
+        raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
     cfg = table1.preset("fast" if args.fast else "full")
     if args.seeds is not None:
         if args.seeds < 1:
@@ -100,11 +103,15 @@ def _reproduce(args) -> int:
         if not 0 <= i < n:
             raise ValueError(f"--shard {args.shard}: need 0 <= I < N")
         shard = (i, n)
-    summary = table1.run(cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard)
+    summary = table1.run(
+        cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble
+    )
     if summary is None:
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
         return 0
     print(summary["table_md"])
+    if summary.get("missing_jobs"):
+        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
     print(f"results, curves and figures in {out}/")
     return 0
 

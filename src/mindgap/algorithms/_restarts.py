@@ -16,6 +16,7 @@ long before it converges, so many cheap starts buy the reliability of many full 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -48,6 +49,8 @@ class RestartRun:
     converged: np.ndarray
     history: list = field(default_factory=list)
     dropped: dict = field(default_factory=dict)
+    elapsed: list = field(default_factory=list)
+    """Seconds since the start at each history entry (compilation included)."""
 
     def trace(self, restart_id: int):
         """``(iterations, snapshots)`` of one initial restart along the run."""
@@ -122,6 +125,8 @@ def run_restarts(
     dropped = {}
     screening = keep is not None and keep < n_restarts
     it = 0
+    start = time.perf_counter()
+    elapsed = [0.0]
     with tqdm(total=max_iter, desc=desc, disable=not progress, leave=False) as bar:
         while it < max_iter and not (converged | failed).all():
             if screening and it >= screen_iter:
@@ -152,9 +157,10 @@ def run_restarts(
             prev = obj
             it += n
             history.append((it, ids, jax.device_get(snapshot(states)), objective.copy()))
+            elapsed.append(time.perf_counter() - start)
             bar.update(n)
             bar.set_postfix(best=f"{np.max(objective):.4g}", done=f"{int((converged | failed).sum())}/{n_restarts}")
-    return RestartRun(states, objective, ids, it, converged, history, dropped)
+    return RestartRun(states, objective, ids, it, converged, history, dropped, elapsed)
 
 
 def _expand(mask, like):

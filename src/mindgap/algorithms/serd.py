@@ -25,7 +25,7 @@ from ..models.belief import BeliefSpace
 from ..models.rating import censored_log_likelihood, mean_log_policy_from_counts
 from ..planning import soft_q_values
 from ._restarts import RestartRun, run_restarts
-from .gerel import RatingData
+from .gerel_model import RatingData
 
 
 @dataclass(frozen=True)

@@ -150,12 +150,13 @@ def informative_pairs(size: int, true_t: np.ndarray, human_t: np.ndarray, weight
     anti-diagonal (SPEC §3.1).
     """
     corners = corner_cells(size)
+    pairs = list(itertools.permutations(range(4), 2))
+    rewards = np.stack([corner_features(size, corners[[i, j]]) @ np.asarray(weights) for i, j in pairs])
+    greedy = np.asarray(q_values(jnp.asarray(human_t), jnp.asarray(rewards, jnp.float32), discount)).argmax(-1)
     gains = {}
-    for i, j in itertools.permutations(range(4), 2):
-        reward = corner_features(size, corners[[i, j]]) @ np.asarray(weights)
-        q = np.asarray(q_values(jnp.asarray(human_t), jnp.asarray(reward), discount))
-        greedy = q.argmax(-1)
-        gains[(i, j)] = float((true_t[np.arange(size * size), greedy] @ reward - reward).mean())
+    for k, pair in enumerate(pairs):
+        moved = true_t[np.arange(size * size), greedy[k]] @ rewards[k]
+        gains[pair] = float((moved - rewards[k]).mean())
     worst = min(gains.values())
     if worst >= 0:
         return []

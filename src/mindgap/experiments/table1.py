@@ -168,12 +168,15 @@ def _jobs(cfg: Table1Config):
                     yield "demos", setting, seed, n, method, "tied" if method in ("gerel", "serd") else "-"
 
 
-def run(cfg: Table1Config, out: Path, *, fresh: bool = False, progress: bool = True, shard=None) -> dict | None:
+def run(
+    cfg: Table1Config, out: Path, *, fresh: bool = False, progress: bool = True, shard=None, assemble_only: bool = False
+) -> dict | None:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
 
     ``shard=(i, n)`` runs only the ``i``-th of ``n`` interleaved slices of the
     (setting, seed) groups, so ``n`` processes can share one run folder; a final call
     without ``shard`` assembles the outputs (and runs whatever is still missing).
+    ``assemble_only`` writes the outputs from the finished jobs and runs nothing.
     """
     out = Path(out)
     folder = RunFolder(out, cfg, fresh=fresh and shard is None)
@@ -187,12 +190,14 @@ def run(cfg: Table1Config, out: Path, *, fresh: bool = False, progress: bool = T
     records = []
     from tqdm.auto import tqdm
 
-    for sweep, setting, seed, n, method, param in tqdm(jobs, desc="table1", disable=not progress):
+    for sweep, setting, seed, n, method, param in tqdm(jobs, desc="table1", disable=not progress or assemble_only):
         key = f"{sweep}/{setting}/s{seed}/n{n}/{method}/{param}"
         rec = folder.done(key)
         if rec is None and sweep == "demos" and n == cfg.demos and seed < cfg.seeds:
             same = folder.done("main" + key[len("demos") :])  # the main sweep already fitted these data
             rec = None if same is None else {**same, "sweep": "demos"}
+        if rec is None and assemble_only:
+            continue
         if rec is None:
             dkey = (setting, seed)
             if dkey not in data_cache:
@@ -225,7 +230,11 @@ def run(cfg: Table1Config, out: Path, *, fresh: bool = False, progress: bool = T
         records.append(rec)
     if shard is not None:
         return None
-    return write_outputs(cfg, out, records)
+    if not records:
+        raise RuntimeError(f"{out} has no finished jobs to assemble")
+    summary = write_outputs(cfg, out, records)
+    summary["missing_jobs"] = len(jobs) - len(records)
+    return summary
 
 
 def _expand(records, cfg):

@@ -37,9 +37,9 @@ def summarise(cfg, rows, restart_rows, demo_rows) -> dict:
 
     lines = []
     for p in cfg.belief_params:
-        lines.append(
-            f"\nBelief parameterisation: {p}  (mean ± std over {cfg.seeds} seeds, {cfg.demos} demonstrations)\n"
-        )
+        n_seeds = sorted({e["n"] for k, e in stats.items() if k.startswith(p + "|")})
+        seeds = "/".join(str(n) for n in n_seeds)
+        lines.append(f"\nBelief parameterisation: {p}  (mean ± std over {seeds} seeds, {cfg.demos} demonstrations)\n")
         head = "| method | " + " | ".join(f"{s} d(R) | d(Θ) | d(π)" for s in cfg.settings) + " |"
         lines += [head, "|" + "---|" * (1 + 3 * len(cfg.settings))]
         for m in ORDER:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 import jax
 import jax.numpy as jnp
 
 
+@partial(jax.jit, static_argnames=("n_episodes", "length"))
 def rollout(key, transitions, policy, initial, n_episodes: int, length: int):
     """Sample ``n_episodes`` trajectories of ``length`` steps.
 
@@ -35,6 +38,7 @@ def rollout(key, transitions, policy, initial, n_episodes: int, length: int):
     return states.T.astype(jnp.int32), actions.T.astype(jnp.int32)
 
 
+@partial(jax.jit, static_argnames=("horizon",))
 def state_visitation(transitions, policy, start, horizon: int, discount=1.0):
     """Expected (discounted) state visitation counts ``Σ_t λ^t p_t(s)`` over ``horizon`` steps.
 

@@ -86,6 +86,7 @@ def _values_bwd(n_iter, soft, res, v_bar):
 state_values.defvjp(_values_fwd, _values_bwd)
 
 
+@partial(jax.jit, static_argnames=("n_iter",))
 def q_values(transitions, reward, discount, n_iter: int = DEFAULT_ITERATIONS) -> jnp.ndarray:
     """Optimal Q-values by value iteration (Bellman optimality, max backup).
 
@@ -101,11 +102,13 @@ def q_values(transitions, reward, discount, n_iter: int = DEFAULT_ITERATIONS) ->
     return _backup(transitions, reward, state_values(transitions, reward, discount, n_iter, False), discount)
 
 
+@partial(jax.jit, static_argnames=("n_iter",))
 def boltzmann_policy(transitions, reward, discount, beta=1.0, n_iter: int = DEFAULT_ITERATIONS):
     """The person's softmax policy ``π̃(a|s) ∝ exp(β Q(s, a))`` (§2.2.2), ``[..., S, A]``."""
     return jax.nn.softmax(beta * q_values(transitions, reward, discount, n_iter), axis=-1)
 
 
+@partial(jax.jit, static_argnames=("n_iter",))
 def soft_q_values(transitions, reward, discount, n_iter: int = DEFAULT_ITERATIONS) -> jnp.ndarray:
     """Soft Q-values: ``V(s) = log Σ_a exp Q(s, a)`` replaces the max (Ziebart 2008).
 
@@ -114,6 +117,7 @@ def soft_q_values(transitions, reward, discount, n_iter: int = DEFAULT_ITERATION
     return _backup(transitions, reward, state_values(transitions, reward, discount, n_iter, True), discount)
 
 
+@partial(jax.jit, static_argnames=("n_iter",))
 def soft_policy(transitions, reward, discount, n_iter: int = DEFAULT_ITERATIONS):
     """MaxEnt policy ``π(a|s) = exp(Q_soft(s, a) − V_soft(s))``, ``[..., S, A]``."""
     return jax.nn.softmax(soft_q_values(transitions, reward, discount, n_iter), axis=-1)

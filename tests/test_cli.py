@@ -1,0 +1,87 @@
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from mindgap.cli import main
+
+COLUMNS = ["setting", "belief_param", "method", "seed", "d_R", "d_Theta", "d_pi"]
+
+
+def test_reproduce_table1_fast_writes_its_files(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["reproduce", "table1", "--fast", "--quiet", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "GeReL" in printed and "MaxEnt-IRL" in printed
+    with (out / "results.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0])[:7] == COLUMNS
+    assert {r["method"] for r in rows} == {"gerel", "serd", "gerel-minus", "maxent-irl"}
+    assert {r["belief_param"] for r in rows} == {"tied", "per-sa"}
+    assert {r["setting"] for r in rows} == {"reversed", "rotated"}
+    assert all(np.isfinite(float(r[k])) for r in rows for k in ("d_R", "d_Theta", "d_pi"))
+    for name in (
+        "curves.csv",
+        "restarts.csv",
+        "demo_counts.csv",
+        "summary.json",
+        "table.md",
+        "rewards_reversed.png",
+        "curves_rotated_tied.png",
+        "demo_counts_reversed.png",
+    ):
+        assert (out / name).stat().st_size > 0, name
+    summary = json.loads((out / "summary.json").read_text())
+    assert "tied|reversed|gerel" in summary["stats"]
+    # a second run resumes: every job is already there, the table is the same
+    assert main(["reproduce", "table1", "--fast", "--quiet", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.split("results,")[0] == printed.split("results,")[0]
+    assert main(["reproduce", "table1", "--fast", "--quiet", "--assemble", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.split("results,")[0] == printed.split("results,")[0]
+
+
+def test_reproduce_refuses_a_folder_of_another_configuration(tmp_path, capsys):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.json").write_text("{}")
+    assert main(["reproduce", "table1", "--fast", "--out", str(out)]) == 2
+    assert "another configuration" in capsys.readouterr().err
+
+
+def test_gerel_simulated_then_from_its_ratings_file(tmp_path, capsys):
+    ratings = tmp_path / "ratings.csv"
+    out = tmp_path / "fit"
+    args = ["gerel", "--size", "3", "--demos", "60", "--length", "4", "--max-iter", "50", "--restarts", "2", "--quiet"]
+    assert main(args + ["--save-ratings", str(ratings), "--out", str(out)]) == 0
+    report = json.loads((out / "posterior.json").read_text())
+    assert set(report["metrics"]) >= {"d_R", "d_Theta", "d_pi"}
+    assert np.load(out / "posterior.npz")["transitions"].shape == (9, 4, 9)
+    assert "Up" in capsys.readouterr().out
+    out2 = tmp_path / "fit2"
+    assert main(args + ["--ratings", str(ratings), "--out", str(out2)]) == 0
+    assert json.loads((out2 / "posterior.json").read_text())["n_demos"] == 60
+
+
+@pytest.mark.parametrize(
+    "extra,msg",
+    [
+        (["--domain", "mars"], "unknown domain"),
+        (["--belief", "1,1,2,3"], "not a permutation"),
+        (["--corners", "0,0"], "corners"),
+        (["--ratings", "RATINGS"], "missing column"),
+    ],
+)
+def test_gerel_bad_input_is_named_and_nothing_is_written(tmp_path, capsys, extra, msg):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("demo,step,state\n0,0,1\n")
+    extra = [str(bad) if x == "RATINGS" else x for x in extra]
+    out = tmp_path / "out"
+    assert main(["gerel", "--size", "3", "--out", str(out), "--quiet"] + extra) == 2
+    assert msg in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_unknown_experiment(capsys):
+    assert main(["reproduce", "table9"]) == 2
+    assert "unknown experiment" in capsys.readouterr().err

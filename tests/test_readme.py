@@ -1,0 +1,19 @@
+import re
+from pathlib import Path
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def test_readme_opens_with_the_two_commands():
+    text = README.read_text()
+    first = re.findall(r"```(?:bash|sh)\n(.*?)```", text, re.S)[0]
+    assert "scripts/main.sh" in first and "scripts/test.sh" in first
+    ci = (README.parent / ".ci" / "run").read_text()
+    assert "scripts/test.sh" in ci
+
+
+def test_readme_python_snippet_runs():
+    snippet = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)[0]
+    namespace: dict = {}
+    exec(compile(snippet, "README.md", "exec"), namespace)
+    assert namespace["metrics"]["d_Theta"] < 0.61  # closer to the belief than the true dynamics are
