@@ -57,6 +57,7 @@ def test_gerel_simulated_then_from_its_ratings_file(tmp_path, capsys):
     report = json.loads((out / "posterior.json").read_text())
     assert set(report["metrics"]) >= {"d_R", "d_Theta", "d_pi"}
     assert np.load(out / "posterior.npz")["transitions"].shape == (9, 4, 9)
+    assert (out / "posterior.png").stat().st_size > 0
     assert "Up" in capsys.readouterr().out
     out2 = tmp_path / "fit2"
     assert main(args + ["--ratings", str(ratings), "--out", str(out2)]) == 0

@@ -103,9 +103,7 @@ def _reproduce(args) -> int:
         if not 0 <= i < n:
             raise ValueError(f"--shard {args.shard}: need 0 <= I < N")
         shard = (i, n)
-    summary = table1.run(
-        cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble
-    )
+    summary = table1.run(cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble)
     if summary is None:
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
         return 0
@@ -172,7 +170,8 @@ def _gerel(args) -> int:
         "elbo": float(res.elbo[res.best]),
         "iterations": res.run.iterations,
     }
-    print(f"learned reward weights μ = {np.round(res.mu, 3).tolist()}  (ELBO {report['elbo']:.1f})")
+    weights = ", ".join(f"{x:.3f}" for x in res.mu)
+    print(f"learned reward weights μ = [{weights}]  (ELBO {report['elbo']:.1f})")
     if args.param == "tied" and not args.minus:
         theta = res.alpha / res.alpha.sum(-1, keepdims=True)
         print("believed effect of each action (probability of each move):")
@@ -198,8 +197,26 @@ def _gerel(args) -> int:
         tmp.write_bytes(buf.getvalue())
         tmp.replace(args.out / "posterior.npz")
         atomic_write(args.out / "posterior.json", json.dumps(report, indent=2))
-        print(f"posterior saved to {args.out}/posterior.npz")
+        _save_heatmaps(args.out / "posterior.png", task, res, simulated)
+        print(f"posterior saved to {args.out}/posterior.npz (plot: posterior.png)")
     return 0
+
+
+def _save_heatmaps(path: Path, task, res, simulated: bool) -> None:
+    """Learned reward with the believed policy's arrows, next to the truth when it is known."""
+    import numpy as np
+
+    from .planning import boltzmann_policy
+    from .plotting.heatmaps import save_reward_panels
+
+    feats = np.asarray(task.mdp.features)
+    panels = [("learned R, expected actions", feats @ res.mu)]
+    policies = [np.asarray(boltzmann_policy(res.transitions, feats @ res.mu, task.mdp.discount))]
+    if simulated:
+        w = np.asarray(task.true_weights)
+        panels.insert(0, ("true R_H, person's actions", feats @ w))
+        policies.insert(0, np.asarray(boltzmann_policy(task.human_transitions, feats @ w, task.mdp.discount)))
+    save_reward_panels(path, panels, task.size, policies)
 
 
 if __name__ == "__main__":

@@ -46,7 +46,9 @@ def summarise(cfg, rows, restart_rows, demo_rows) -> dict:
             cells = []
             for s in cfg.settings:
                 e = stats.get(f"{p}|{s}|{m}")
-                cells += [f"{e[k][0]:.2f} ± {e[k][1]:.2f}" if e else "–" for k in METRICS]
+                for k in METRICS:
+                    fmt = ".2f" if k == "d_R" else ".3f"
+                    cells.append(f"{e[k][0]:{fmt}} ± {e[k][1]:{fmt}}" if e else "–")
             lines.append(f"| {LABELS[m]} | " + " | ".join(cells) + " |")
 
     checks = {}

@@ -30,7 +30,7 @@ def draw_grid(ax, values, size: int, title: str, policy=None, vmax=None):
 def save_reward_panels(path: Path, panels: list[tuple[str, np.ndarray]], size: int, policies=None):
     """Save side-by-side reward heatmaps sharing one colour scale."""
     vmax = max(float(np.abs(v).max()) for _, v in panels) or 1.0
-    fig, axes = plt.subplots(1, len(panels), figsize=(2.4 * len(panels), 2.7))
+    fig, axes = plt.subplots(1, len(panels), figsize=(2.9 * len(panels), 2.9))
     axes = np.atleast_1d(axes)
     for i, (ax, (title, vals)) in enumerate(zip(axes, panels)):
         im = draw_grid(ax, vals, size, title, None if policies is None else policies[i], vmax)
