@@ -16,4 +16,6 @@ def test_readme_python_snippet_runs():
     snippet = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)[0]
     namespace: dict = {}
     exec(compile(snippet, "README.md", "exec"), namespace)
-    assert namespace["metrics"]["d_Theta"] < 0.61  # closer to the belief than the true dynamics are
+    metrics = namespace["metrics"]
+    assert metrics["d_Theta"] < 0.61  # closer to the person's belief than the true dynamics are
+    assert metrics["corr_R"] > 0.9 and metrics["d_pi"] < 0.1
