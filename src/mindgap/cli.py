@@ -119,9 +119,9 @@ def _gerel(args) -> int:
     import numpy as np
 
     from . import rng
+    from ._io import atomic_write
     from .algorithms.gerel import GeReLConfig, fit_gerel
     from .envs.grid import ACTIONS, MOVE_NAMES, make_grid
-    from .experiments._runfolder import atomic_write
     from .experiments.table1 import belief_space
     from .feedback.demos import random_demonstrations
     from .feedback.ratings_file import read_ratings, write_ratings
@@ -193,9 +193,7 @@ def _gerel(args) -> int:
 
         buf = io.BytesIO()
         np.savez(buf, mu=res.mu, alpha=res.alpha, transitions=res.transitions)
-        tmp = args.out / ".posterior.npz.tmp"
-        tmp.write_bytes(buf.getvalue())
-        tmp.replace(args.out / "posterior.npz")
+        atomic_write(args.out / "posterior.npz", buf.getvalue())
         atomic_write(args.out / "posterior.json", json.dumps(report, indent=2))
         _save_heatmaps(args.out / "posterior.png", task, res, simulated)
         print(f"posterior saved to {args.out}/posterior.npz (plot: posterior.png)")

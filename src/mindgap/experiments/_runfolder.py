@@ -3,28 +3,18 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
-import os
-import tempfile
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
 
-
-def atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` so that a crash leaves either the old file or the new one."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+from .._io import atomic_write
 
 
 def write_csv(path: Path, rows: list[dict], columns: list[str]) -> None:
     """Write rows (dicts) as CSV with the given leading columns (extra keys follow)."""
     extra = [k for r in rows for k in r if k not in columns]
     cols = columns + list(dict.fromkeys(extra))
-    import io
-
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=cols, extrasaction="ignore", lineterminator="\n")
     w.writeheader()

@@ -22,8 +22,10 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from tqdm.auto import tqdm
 
 from .. import rng
+from .._io import atomic_write
 from ..algorithms.gerel import GeReLConfig, fit_gerel
 from ..algorithms.maxent_irl import MaxEntConfig, fit_maxent_irl
 from ..algorithms.serd import SERDConfig, fit_serd
@@ -32,7 +34,7 @@ from ..feedback.demos import policy_demonstrations, random_demonstrations
 from ..metrics import all_metrics
 from ..models.belief import BeliefSpace, per_state_action, tied
 from ..teachers.rating import RatingTeacher
-from ._runfolder import RunFolder, atomic_write, write_csv
+from ._runfolder import RunFolder, write_csv
 from .table1_report import render_figures, summarise
 
 METHODS = ("gerel", "serd", "gerel-minus", "maxent-irl")
@@ -188,8 +190,6 @@ def run(
         jobs = [j for j in jobs if (j[0], j[1], j[2]) in mine]
     data_cache: dict = {}
     records = []
-    from tqdm.auto import tqdm
-
     for sweep, setting, seed, n, method, param in tqdm(jobs, desc="table1", disable=not progress or assemble_only):
         key = f"{sweep}/{setting}/s{seed}/n{n}/{method}/{param}"
         rec = folder.done(key)

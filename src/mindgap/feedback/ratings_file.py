@@ -28,6 +28,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
+from .._io import atomic_write
 from ._errors import RatingsFileError
 from .demos import RatedDemonstrations, make_demonstrations
 
@@ -95,8 +96,6 @@ def read_ratings(path, *, n_states: int, n_actions: int, gamma_max: float = 10.0
 
 def write_ratings(path, rated: RatedDemonstrations) -> None:
     """Write rated demonstrations in the format :func:`read_ratings` reads (atomically)."""
-    from ..experiments._runfolder import atomic_write
-
     states = np.asarray(rated.demos.states)
     actions = np.asarray(rated.demos.actions)
     mask = np.asarray(rated.demos.mask)
