@@ -28,6 +28,29 @@ import numpy as np
 from tqdm.auto import tqdm
 
 
+@dataclass(frozen=True)
+class RestartSchedule:
+    """How many restarts run, how they are screened and when they stop (base of the learners' configs)."""
+
+    max_iter: int = 1500
+    """Iteration cap (MaxIter)."""
+    check_every: int = 50
+    """Iterations between convergence tests (and learning-curve points)."""
+    tol: float = 1e-4
+    """Converged when the objective's chunk mean moves less than this per rating."""
+    restarts: int = 32
+    """Random restarts run side by side; the highest objective wins."""
+    keep: int = 4
+    """Restarts that go on after screening (the rest stop at ``screen_iter``)."""
+    screen_iter: int = 300
+    """Iterations before screening restarts by their objective."""
+
+    def __post_init__(self):
+        for name in ("max_iter", "check_every", "restarts", "keep"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1")
+
+
 @dataclass
 class RestartRun:
     """What a multi-restart optimisation produced.

@@ -20,28 +20,17 @@ from ..models import dirichlet
 from ..models.belief import BeliefSpace
 from ..models.rating import censored_log_likelihood, mean_log_policy_from_counts
 from ..planning import q_values
+from ._restarts import RestartSchedule
 
 
 @dataclass(frozen=True)
-class GeReLConfig:
-    """Hyperparameters of GeReL (Algorithm 1)."""
+class GeReLConfig(RestartSchedule):
+    """Hyperparameters of GeReL (Algorithm 1); the restart schedule's objective is the ELBO."""
 
     estimator: Literal["pathwise", "score"] = "pathwise"
     """ELBO gradient estimator: ``pathwise`` (reparameterised) or ``score`` (the paper's)."""
     n_samples: int = 8
     """Monte Carlo samples of ``(w, Θ)`` per iteration."""
-    max_iter: int = 1500
-    """Iteration cap (MaxIter)."""
-    check_every: int = 50
-    """Iterations between convergence tests (and learning-curve points)."""
-    tol: float = 1e-4
-    """Converged when the ELBO's chunk mean moves less than this per rating."""
-    restarts: int = 32
-    """Random restarts run side by side; the highest ELBO wins."""
-    keep: int = 4
-    """Restarts that go on after screening (the rest stop at ``screen_iter``)."""
-    screen_iter: int = 300
-    """Iterations before screening restarts by ELBO."""
     anneal_iter: int = 300
     """Pathwise only: the likelihood's weight rises linearly from 0 to 1 over these
     iterations (annealed VI), which lets restarts leave poor basins early."""
@@ -73,9 +62,10 @@ class GeReLConfig:
     """GeReL⁻: keep the belief at the true dynamics and learn only ``μ``."""
 
     def __post_init__(self):
+        super().__post_init__()
         if self.estimator not in ("pathwise", "score"):
             raise ValueError(f"unknown estimator {self.estimator!r}: use 'pathwise' or 'score'")
-        for name in ("n_samples", "max_iter", "check_every", "restarts", "keep", "vi_iterations"):
+        for name in ("n_samples", "vi_iterations"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1")
         if self.n_samples < 2 and self.estimator == "score":

@@ -24,26 +24,14 @@ from ..models import dirichlet
 from ..models.belief import BeliefSpace
 from ..models.rating import censored_log_likelihood, mean_log_policy_from_counts
 from ..planning import soft_q_values
-from ._restarts import RestartRun, run_restarts
+from ._restarts import RestartRun, RestartSchedule, run_restarts
 from .gerel_model import RatingData
 
 
 @dataclass(frozen=True)
-class SERDConfig:
-    """Hyperparameters of the SERD variant."""
+class SERDConfig(RestartSchedule):
+    """Hyperparameters of the SERD variant; the restart schedule's objective is the MAP objective."""
 
-    max_iter: int = 1500
-    """Iteration cap."""
-    check_every: int = 50
-    """Iterations between convergence tests."""
-    tol: float = 1e-4
-    """Converged when the objective's chunk mean moves less than this per rating."""
-    restarts: int = 32
-    """Random restarts."""
-    keep: int = 4
-    """Restarts kept after screening."""
-    screen_iter: int = 300
-    """Iterations before screening."""
     learning_rate: float = 0.05
     """Adam step size."""
     reward_prior_std: float = 10.0
