@@ -3,6 +3,7 @@
 mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
+mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 """
 
 from __future__ import annotations
@@ -30,6 +31,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bars")
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
+
+    from .commands import worlds
+
+    worlds.add_parser(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
     g.add_argument("--domain", default="grid7", help=f"domain: {', '.join(DOMAINS)}")
@@ -75,6 +80,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "reproduce":
             return _reproduce(args)
+        if args.command == "worlds":
+            from .commands import worlds
+
+            return worlds.run(args)
         return _gerel(args)
     except (ValueError, RuntimeError, FloatingPointError) as e:
         print(f"mindgap: error: {e}", file=sys.stderr)

@@ -1,0 +1,1 @@
+"""Sub-commands of the ``mindgap`` CLI that live in their own modules."""

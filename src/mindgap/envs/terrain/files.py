@@ -1,0 +1,111 @@
+"""Terrain worlds from TOML files; the six worlds of the dissertation ship as such files.
+
+A world file::
+
+    name = "corridors"
+    description = "what it tests"
+    horizon = 100                 # steps per episode
+    start_jitter = 0.2            # optional, cells
+    layout = '''
+    #######
+    #S.~.G#
+    #######
+    '''
+
+    [rewards]                     # r = step + progress·(Φ(s) − Φ(s')) + goal/pit on entry
+    goal = 10.0
+    pit = -10.0
+    step = -1.0
+    progress = 0.0
+
+    [dynamics]                    # the true table; unspecified entries: speed 1, noise 0.05, stuck 0
+    sand = { speed = 0.5, noise = 0.05, stuck = 0.5 }
+    pit_noise = 0.0
+    pit_scale = 0.5
+
+    [beliefs.human]               # a person's table: entries not given are the true ones
+    ice = { speed = 0.3, noise = 0.3 }
+
+    [expect]                      # optional: what the planning check must show
+    true_prefers = "ice"          # the optimal route spends more steps on ice than on sand
+    belief_prefers = "sand"       # the route the person expects: more on sand
+    wider_berth = 0.5             # the expected route keeps ≥ 0.5 cell farther from pits
+
+Wherever a world is named (``--world NAME``), a path to such a file works too.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+from .layout import LayoutError, parse_layout
+from .params import Dynamics, Rewards, make_params
+from .world import TerrainWorld
+
+NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4")
+_KEYS = {"name", "description", "horizon", "start_jitter", "layout", "rewards", "dynamics", "beliefs", "expect"}
+EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth"}
+
+
+def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
+    """Build a world from the parsed contents of a world file."""
+    where = f"{source}: " if source else ""
+    unknown = set(spec) - _KEYS
+    if unknown:
+        raise ValueError(f"{where}unknown key(s) {', '.join(sorted(unknown))}; expected {', '.join(sorted(_KEYS))}")
+    for key in ("layout", "horizon"):
+        if key not in spec:
+            raise ValueError(f"{where}missing {key!r}")
+    try:
+        layout = parse_layout(spec["layout"])
+    except LayoutError as e:
+        raise LayoutError(f"{where}layout: {e}") from None
+    rw = spec.get("rewards", {})
+    bad = set(rw) - set(Rewards._fields)
+    if bad:
+        raise ValueError(f"{where}[rewards]: unknown key(s) {', '.join(sorted(bad))}")
+    rewards = Rewards(
+        goal=float(rw.get("goal", 0.0)),
+        pit=float(rw.get("pit", 0.0)),
+        step=float(rw.get("step", 0.0)),
+        progress=float(rw.get("progress", 0.0)),
+    )
+    try:
+        true = Dynamics.from_dict(spec.get("dynamics", {}))
+        beliefs = {name: Dynamics.from_dict(table, base=true) for name, table in spec.get("beliefs", {}).items()}
+        params = make_params(
+            layout, true, rewards, horizon=int(spec["horizon"]), start_jitter=float(spec.get("start_jitter", 0.2))
+        )
+    except ValueError as e:
+        raise ValueError(f"{where}{e}") from None
+    expect = dict(spec.get("expect", {}))
+    bad = set(expect) - EXPECT_KEYS
+    if bad:
+        raise ValueError(f"{where}[expect]: unknown key(s) {', '.join(sorted(bad))}; known: {', '.join(sorted(EXPECT_KEYS))}")
+    for key in ("true_prefers", "belief_prefers"):
+        if key in expect and expect[key] not in ("ice", "sand"):
+            raise ValueError(f"{where}[expect] {key} must be 'ice' or 'sand', got {expect[key]!r}")
+    name = spec.get("name") or (Path(source).stem if source else "world")
+    return TerrainWorld(name, layout, params, beliefs, spec.get("description", "").strip(), source, expect)
+
+
+def load_world(name_or_path: str | Path) -> TerrainWorld:
+    """A named world (``nav1`` … ``d4``) or a world file.
+
+    Raises:
+        ValueError: neither a named world nor a readable world file, or a malformed file.
+    """
+    text = str(name_or_path)
+    if text in NAMED_WORLDS:
+        ref = resources.files("mindgap.envs.terrain") / "worlds" / f"{text}.toml"
+        return world_from_dict(tomllib.loads(ref.read_text()), source=f"{text}.toml")
+    path = Path(text)
+    if not path.is_file():
+        raise ValueError(f"unknown world {text!r}: not one of {', '.join(NAMED_WORLDS)} and no such file")
+    try:
+        spec = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"{path}: not valid TOML: {e}") from None
+    return world_from_dict(spec, source=str(path))

@@ -1,0 +1,96 @@
+"""A gymnasium ``Env`` around a terrain world, so gymnasium-based libraries can use it.
+
+Each ``step`` calls one jitted JAX function (sample, reward, termination, observation in
+one dispatch). For many environments at once, use the functional API with ``jax.vmap``
+instead: it is orders of magnitude faster (see ``benchmarks/terrain_step.py``).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ... import rng
+from .files import load_world
+from .params import TerrainParams
+from .world import TerrainWorld, observe, reset, step
+
+
+@jax.jit
+def _jit_step(key, state, action, params):
+    key, sub = jax.random.split(key)
+    out = step(sub, state, action, params)
+    return key, out, observe(out.state, params)
+
+
+@jax.jit
+def _jit_reset(key, params):
+    key, sub = jax.random.split(key)
+    state = reset(sub, params)
+    return key, state, observe(state, params)
+
+
+class TerrainEnv(gym.Env):
+    """Gymnasium view of a terrain world.
+
+    Observation: the position scaled to [−1, 1]² (float32). Action: a displacement
+    command in [−1, 1]². ``terminated`` on pit or goal, ``truncated`` at the horizon.
+    ``info`` carries the position in cells and the terrain code.
+
+    Args:
+        world: a :class:`TerrainWorld`, a world name (``nav1`` … ``d4``) or a world file.
+        belief: step under this belief's table instead of the true one (a simulated
+            person's imagined world).
+        render_mode: ``"rgb_array"`` for frames of the map with the agent drawn on it.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 8}
+
+    def __init__(self, world: TerrainWorld | str = "nav1", belief: str | None = None, render_mode: str | None = None):
+        self.world = world if isinstance(world, TerrainWorld) else load_world(world)
+        self.params: TerrainParams = self.world.belief(belief) if belief else self.world.params
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.observation_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self._key = rng.key(0)
+        self._state = None
+
+    def reset(self, *, seed: int | None = None, options=None):
+        super().reset(seed=seed)
+        if seed is not None:
+            self._key = rng.key(seed)
+        self._key, self._state, obs = _jit_reset(self._key, self.params)
+        return np.asarray(obs, np.float32), self._info()
+
+    def step(self, action):
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        a = jnp.asarray(np.asarray(action, np.float32).reshape(2))
+        self._key, out, obs = _jit_step(self._key, self._state, a, self.params)
+        self._state = out.state
+        return (
+            np.asarray(obs, np.float32),
+            float(out.reward),
+            bool(out.terminated),
+            bool(out.truncated),
+            self._info(),
+        )
+
+    def _info(self) -> dict:
+        return {"pos": np.asarray(self._state.pos), "t": int(self._state.t)}
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        from ...plotting.terrain import terrain_image
+
+        k = 16
+        img = np.repeat(np.repeat(terrain_image(self.params), k, 0), k, 1)
+        x, y = np.asarray(self._state.pos) * k if self._state is not None else (-10, -10)
+        yy, xx = np.mgrid[: img.shape[0], : img.shape[1]]
+        img[(xx - x) ** 2 + (yy - y) ** 2 <= (k * 0.3) ** 2] = (0.84, 0.15, 0.16)
+        return (img * 255).astype(np.uint8)

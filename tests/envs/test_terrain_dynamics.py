@@ -1,0 +1,122 @@
+"""The terrain transition model: ``sample_next``, ``log_prob_pos`` and ``subcell_probs`` agree exactly."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy import stats
+
+from mindgap.envs.terrain import Dynamics, Rewards, parse_layout
+from mindgap.envs.terrain.dynamics import landing_allowed, log_prob_pos, sample_next, subcell_probs
+from mindgap.envs.terrain.params import make_params
+
+# Every terrain, walls on several sides, a diagonal gap closed by two walls, a pit.
+LAYOUT = """
+#########
+#S.~~:::#
+#..~~:#.#
+#.P.#.#.#
+#....#.G#
+#########
+"""
+TABLE = {
+    "floor": {"speed": 1.0, "noise": 0.12, "stuck": 0.0},
+    "ice": {"speed": 0.8, "noise": 0.3, "stuck": 0.0},
+    "sand": {"speed": 0.5, "noise": 0.08, "stuck": 0.4},
+    "pit_noise": 0.3,
+    "pit_scale": 0.7,
+}
+# (name, position (x, y), action): one per terrain and wall configuration
+CASES = [
+    ("floor, open", (1.5, 2.5), (1.0, 0.3)),
+    ("floor, near pit", (2.5, 2.2), (-0.4, 1.0)),
+    ("floor, corner into walls", (1.15, 1.2), (-1.0, -1.0)),
+    ("ice, wide noise", (3.5, 1.5), (1.0, 1.0)),
+    ("ice, against wall", (4.8, 2.5), (1.0, 0.5)),
+    ("sand, stuck mass", (5.5, 1.5), (1.0, 0.0)),
+    ("sand, diagonal gap closed by two walls", (5.9, 2.9), (1.0, 1.0)),
+    ("floor beside the goal", (6.5, 3.5), (1.0, 1.0)),
+]
+
+
+@pytest.fixture(scope="module")
+def params():
+    layout = parse_layout(LAYOUT)
+    return make_params(layout, Dynamics.from_dict(TABLE), Rewards(10.0, -10.0, -1.0, 0.0), horizon=50)
+
+
+def _grid(pos, k):
+    """Midpoints of a k×k grid per cell over the 3×3 block around pos, and the cell area."""
+    cx, cy = np.floor(pos)
+    xs = cx - 1 + (np.arange(3 * k) + 0.5) / k
+    ys = cy - 1 + (np.arange(3 * k) + 0.5) / k
+    gx, gy = np.meshgrid(xs, ys)
+    return jnp.asarray(np.stack([gx.ravel(), gy.ravel()], -1), jnp.float32), 1.0 / k**2
+
+
+@pytest.mark.parametrize("name,pos,action", CASES, ids=[c[0] for c in CASES])
+def test_density_integrates_to_one(params, name, pos, action):
+    pos, action = jnp.asarray(pos, jnp.float32), jnp.asarray(action, jnp.float32)
+    pts, area = _grid(np.asarray(pos), 240)
+    dens = jnp.exp(jax.jit(jax.vmap(lambda q: log_prob_pos(params, pos, action, q)))(pts))
+    stay = jnp.exp(log_prob_pos(params, pos, action, pos))
+    total = float(stay + dens.sum() * area)
+    assert total == pytest.approx(1.0, abs=2e-3), name
+
+
+@pytest.mark.parametrize("name,pos,action", CASES, ids=[c[0] for c in CASES])
+def test_density_matches_subcell_masses(params, name, pos, action):
+    """Integrating exp(log_prob) over each sub-cell gives the exact rectangle mass."""
+    pos, action = jnp.asarray(pos, jnp.float32), jnp.asarray(action, jnp.float32)
+    n, k = 4, 40  # 4×4 sub-cells per cell, 10×10 quadrature points per sub-cell
+    stay, probs = subcell_probs(params, pos, action, n)
+    pts, area = _grid(np.asarray(pos), k)
+    dens = np.exp(np.asarray(jax.jit(jax.vmap(lambda q: log_prob_pos(params, pos, action, q)))(pts)))
+    per_sub = dens.reshape(3 * n, k // n, 3 * n, k // n).sum((1, 3)) * area
+    np.testing.assert_allclose(per_sub, np.asarray(probs), atol=2e-3)
+    assert float(jnp.exp(log_prob_pos(params, pos, action, pos))) == pytest.approx(float(stay), abs=1e-4)
+
+
+@pytest.mark.parametrize("name,pos,action", CASES, ids=[c[0] for c in CASES])
+def test_samples_follow_the_masses(params, name, pos, action, key):
+    """Chi-square test of 20 000 draws of ``sample_next`` against the exact sub-cell masses."""
+    pos, action = jnp.asarray(pos, jnp.float32), jnp.asarray(action, jnp.float32)
+    n, draws = 4, 20_000
+    nxt = np.asarray(jax.jit(jax.vmap(lambda k: sample_next(k, params, pos, action)))(jax.random.split(key, draws)))
+    stayed = np.all(nxt == np.asarray(pos), axis=1)
+    corner = np.floor(np.asarray(pos)) - 1
+    sub = np.floor((nxt[~stayed] - corner) * n).astype(int)
+    assert np.all((sub >= 0) & (sub < 3 * n)), "a sample left the 3×3 block"
+    counts = np.zeros((3 * n, 3 * n))
+    np.add.at(counts, (sub[:, 1], sub[:, 0]), 1)
+    stay_p, probs = (np.asarray(x, np.float64) for x in subcell_probs(params, pos, action, n))
+    assert counts[probs == 0].sum() == 0, "a sample landed where the model puts no mass"
+    observed = np.append(counts[probs > 0], stayed.sum())
+    expected = np.append(probs[probs > 0], stay_p) * draws
+    big = expected >= 5  # pool the sparse bins into one, as the test requires
+    observed = np.append(observed[big], observed[~big].sum())
+    expected = np.append(expected[big], expected[~big].sum())
+    keep = expected > 0
+    expected = expected[keep] * observed[keep].sum() / expected[keep].sum()
+    p = stats.chisquare(observed[keep], expected).pvalue
+    assert p > 1e-3, f"{name}: samples disagree with the masses (p = {p:.2g})"
+
+
+def test_walls_refuse_and_diagonal_gaps_are_closed(params):
+    pos = jnp.asarray([5.9, 2.9])  # sand at row 2 col 5; cells (2,6) and (3,5) are walls
+    assert not landing_allowed(params, pos, jnp.asarray([6.2, 3.2]))  # through the closed corner
+    assert not landing_allowed(params, pos, jnp.asarray([6.2, 2.5]))  # into the wall
+    assert landing_allowed(params, pos, jnp.asarray([5.5, 2.2]))
+    assert not landing_allowed(params, pos, jnp.asarray([7.5, 2.5]))  # beyond the 3×3 block
+
+
+def test_log_prob_is_finite_far_in_the_tails(params):
+    """A precise step far from walls: the bump mass underflows float32 but its log does not."""
+    precise = params.with_dynamics(Dynamics.from_dict({"floor": {"noise": 0.01}, "pit_noise": 0.0}))
+    pos, a = jnp.asarray([1.5, 2.5]), jnp.asarray([0.0, 0.0])
+    lp_stay = log_prob_pos(precise, pos, a, pos)
+    assert np.isfinite(float(lp_stay)) and float(lp_stay) < -1000
+    far = float(log_prob_pos(precise, pos, a, pos + 0.3))  # 30σ away on both axes: −900 − log(2πσ²)
+    assert np.isfinite(far) and far < -800
+    assert float(log_prob_pos(precise, pos, a, jnp.asarray([0.5, 2.5]))) == -np.inf  # inside the border wall
+    assert float(log_prob_pos(precise, pos, a, pos + 0.01)) > float(log_prob_pos(precise, pos, a, pos + 0.02))
