@@ -10,6 +10,7 @@ return for learners; under a belief table it gives the route the person expects.
 
 from __future__ import annotations
 
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -63,33 +64,35 @@ def discretise(params: TerrainParams, n: int = 4, actions: np.ndarray | None = N
     index[free] = np.arange(free.sum())
     rows, cols = np.nonzero(free)
     positions = jnp.asarray(np.stack([(cols + 0.5) / n, (rows + 0.5) / n], -1), jnp.float32)
-    padded = np.pad(index, n, constant_values=-1)  # the 3×3 block of an edge cell reaches one cell outside
+    padded = jnp.asarray(np.pad(index, n, constant_values=-1))  # an edge cell's block reaches one cell out
+    targets, probs, rewards, terminal = _build(params, positions, padded, actions, n)
+    return Discretised(positions, jnp.asarray(index), targets, probs, rewards, terminal, actions, n)
 
+
+@partial(jax.jit, static_argnums=4)
+def _build(params, positions, padded, actions, n):
     def block_targets(pos):
-        rc = cell_of(pos)
-        r0, c0 = rc[0] * n, rc[1] * n  # block top-left in padded sub-cell coordinates: (r−1)·n + n
-        return jax.lax.dynamic_slice(jnp.asarray(padded), (r0, c0), (3 * n, 3 * n)).reshape(-1)
-
-    targets = jax.vmap(block_targets)(positions)
+        rc = cell_of(pos)  # block top-left in padded sub-cell coordinates: (r − 1)·n + n
+        return jax.lax.dynamic_slice(padded, (rc[0] * n, rc[1] * n), (3 * n, 3 * n)).reshape(-1)
 
     def one(pos, a):
         stay, probs = subcell_probs(params, pos, a, n)
         return jnp.concatenate([probs.reshape(-1), stay[None]])
 
-    probs = jax.jit(jax.vmap(jax.vmap(one, (None, 0)), (0, None)))(positions, actions)
+    targets = jax.vmap(block_targets)(positions)
+    probs = jax.vmap(jax.vmap(one, (None, 0)), (0, None))(positions, actions)
     terr = jax.vmap(lambda p: terrain_at(params, p))(positions)
     terminal = (terr == GOAL) | (terr == PIT)
 
-    def expected_reward(pos, tgt, p):
+    def landing_rewards(pos, tgt):
         land = jnp.where(tgt[:, None] >= 0, positions[jnp.maximum(tgt, 0)], pos)
         land = jnp.concatenate([land, pos[None]])
         s = TerrainState(pos, jnp.zeros((), jnp.int32), jnp.zeros((), bool))
-        r = jax.vmap(lambda q: reward(s, jnp.zeros(2), s._replace(pos=q), params))(land)
-        return p @ r
+        return jax.vmap(lambda q: reward(s, jnp.zeros(2), s._replace(pos=q), params))(land)
 
-    rewards = jax.jit(jax.vmap(jax.vmap(expected_reward, (None, None, 0)), (0, 0, 0)))(positions, targets, probs)
-    rewards = jnp.where(terminal[:, None], 0.0, rewards)
-    return Discretised(positions, jnp.asarray(index), targets, probs, rewards, terminal, actions, n)
+    r_land = jax.vmap(landing_rewards)(positions, targets)  # [N, J]: the reward does not depend on the action
+    rewards = jnp.einsum("nkj,nj->nk", probs, r_land)
+    return targets, probs, jnp.where(terminal[:, None], 0.0, rewards), terminal
 
 
 @jax.jit
@@ -133,32 +136,39 @@ def plan(params: TerrainParams, n: int = 4, discount: float = 0.99, tol: float =
 
 def plan_action(p: Plan, pos: jax.Array) -> jax.Array:
     """The planned action at a continuous position (that of its sub-cell)."""
-    n = p.grid.n
-    sub = jnp.floor(pos[::-1] * n).astype(jnp.int32)
+    sub = jnp.floor(pos[::-1] * p.grid.n).astype(jnp.int32)
     sid = p.grid.index[sub[0], sub[1]]
     return p.grid.actions[p.policy[jnp.maximum(sid, 0)]]
 
 
-def rollouts(key: jax.Array, params: TerrainParams, policy, count: int):
-    """Roll ``policy(pos) → action`` out ``count`` times in the continuous world ``params``.
+def rollouts(key: jax.Array, params: TerrainParams, policy, count: int, policy_params=None):
+    """Roll a policy out ``count`` times in the continuous world ``params``.
+
+    Args:
+        policy: ``policy(policy_params, pos) → action``; a module-level function, so that
+            the compiled program is reused across calls (e.g. :func:`plan_action`).
+        policy_params: a pytree handed to ``policy`` (e.g. a :class:`Plan`).
 
     Returns:
         (positions [count, T+1, 2], rewards [count, T], alive [count, T] — the step happened).
     """
-    horizon = int(params.horizon)
+    return _rollouts(key, params, policy_params, policy, int(params.horizon), count)
 
+
+@partial(jax.jit, static_argnums=(3, 4, 5))
+def _rollouts(key, params, policy_params, policy, horizon, count):
     def one(k):
         k0, k1 = jax.random.split(k)
         s0 = reset(k0, params)
 
         def body(s, kk):
-            out = step(kk, s, policy(s.pos), params)
+            out = step(kk, s, policy(policy_params, s.pos), params)
             return out.state, (out.state.pos, out.reward, ~s.done)
 
         _, (pos, rew, alive) = jax.lax.scan(body, s0, jax.random.split(k1, horizon))
         return jnp.concatenate([s0.pos[None], pos]), rew, alive
 
-    return jax.jit(jax.vmap(one))(jax.random.split(key, count))
+    return jax.vmap(one)(jax.random.split(key, count))
 
 
 class RouteStats(NamedTuple):

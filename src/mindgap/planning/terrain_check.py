@@ -76,7 +76,7 @@ def check_world(
     """
     k_true, k_belief = jax.random.split(rng.key(seed))
     p_true = plan(world.params, n)
-    pos, rew, alive = rollouts(k_true, world.params, lambda s: plan_action(p_true, s), count)
+    pos, rew, alive = rollouts(k_true, world.params, plan_action, count, p_true)
     true = route_stats(world.params, pos, rew, alive)
     true_paths = _paths(pos, alive, draw)
     expected, expected_paths, bname = None, [], None
@@ -84,7 +84,7 @@ def check_world(
         bname = belief or next(iter(world.beliefs))
         bparams = world.belief(bname)
         p_b = plan(bparams, n)
-        pos, rew, alive = rollouts(k_belief, bparams, lambda s: plan_action(p_b, s), count)
+        pos, rew, alive = rollouts(k_belief, bparams, plan_action, count, p_b)
         expected = route_stats(bparams, pos, rew, alive)
         expected_paths = _paths(pos, alive, draw)
     return PlanningCheck(

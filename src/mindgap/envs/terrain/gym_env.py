@@ -94,3 +94,16 @@ class TerrainEnv(gym.Env):
         yy, xx = np.mgrid[: img.shape[0], : img.shape[1]]
         img[(xx - x) ** 2 + (yy - y) ** 2 <= (k * 0.3) ** 2] = (0.84, 0.15, 0.16)
         return (img * 255).astype(np.uint8)
+
+
+def register_named_worlds() -> None:
+    """Register ``mindgap/NAME-v0`` for the named worlds with gymnasium (done on import)."""
+    from .files import NAMED_WORLDS
+
+    for name in NAMED_WORLDS:
+        env_id = f"mindgap/{name}-v0"
+        if env_id not in gym.registry:
+            gym.register(env_id, entry_point="mindgap.envs.terrain.gym_env:TerrainEnv", kwargs={"world": name})
+
+
+register_named_worlds()

@@ -96,7 +96,8 @@ class Rewards(NamedTuple):
     """r(s, a, s') = step + progress · (Φ(s) − Φ(s')) + goal·[enter goal] + pit·[enter pit].
 
     Φ is the geodesic distance to the goal (cells), so ``progress`` rewards how far a step
-    brings the agent toward the goal (ch. 4 worlds); it is potential-based shaping.
+    brings the agent toward the goal (ch. 4 worlds). Φ is 0 in the goal and in pits, which
+    makes the term potential-based shaping: it never changes which episodes are better.
     """
 
     goal: jax.Array

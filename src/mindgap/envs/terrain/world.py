@@ -52,9 +52,13 @@ def reward(state: TerrainState, action: jax.Array, next_state: TerrainState, par
     del action  # the reward of these worlds depends on where the agent goes, not how hard it pushes
     rw = params.rewards
     terr = terrain_at(params, next_state.pos)
+    # Φ = 0 in every terminal cell: over a whole episode the progress terms then add up to
+    # Φ(start) whichever way it ends, so they shape learning without changing which
+    # episodes are better (potential-based shaping, Ng et al. 1999).
+    phi_next = jnp.where((terr == GOAL) | (terr == PIT), 0.0, potential(params, next_state.pos))
     r = (
         rw.step
-        + rw.progress * (potential(params, state.pos) - potential(params, next_state.pos))
+        + rw.progress * (potential(params, state.pos) - phi_next)
         + jnp.where(terr == GOAL, rw.goal, 0.0)
         + jnp.where(terr == PIT, rw.pit, 0.0)
     )
