@@ -19,3 +19,12 @@ def test_readme_python_snippet_runs():
     metrics = namespace["metrics"]
     assert metrics["d_Theta"] < 0.61  # closer to the person's belief than the true dynamics are
     assert metrics["corr_R"] > 0.9 and metrics["d_pi"] < 0.1
+
+
+def test_readme_terrain_snippet_runs():
+    snippet = next(s for s in re.findall(r"```python\n(.*?)```", README.read_text(), re.S) if "load_world" in s)
+    namespace: dict = {}
+    exec(compile(snippet, "README.md", "exec"), namespace)
+    surprise, check = namespace["surprise"], namespace["check"]
+    assert surprise["robot"] > surprise["person"] + 2  # the person does not expect precise moves on ice
+    assert check.true.ice > check.true.sand and check.expected.sand > check.expected.ice

@@ -71,10 +71,26 @@ def _show(args) -> int:
         save_fields(
             args.out,
             world.params,
-            [("true dynamics", noise_field(world.params)), (f"belief '{bname}'", noise_field(bparams))],
+            [
+                ("true dynamics\n" + _table_line(world.params.dynamics), noise_field(world.params)),
+                (f"belief '{bname}'\n" + _table_line(bparams.dynamics), noise_field(bparams)),
+            ],
         )
     print(f"wrote {args.out}")
     return 0
+
+
+def _table_line(dyn) -> str:
+    """One line summarising a dynamics table for a picture's title."""
+    t = dyn.as_dict()
+    parts = [
+        f"{name} ×{t[name]['speed']:g} σ{t[name]['noise']:g}"
+        + (f" stuck {t[name]['stuck']:g}" if t[name]["stuck"] else "")
+        for name in ("ice", "sand")
+    ]
+    if t["pit_noise"]:
+        parts.append(f"pit +{t['pit_noise']:g}·e^(−d/{t['pit_scale']:g})")
+    return ", ".join(parts)
 
 
 def _plan(args) -> int:
@@ -96,6 +112,7 @@ def _plan(args) -> int:
         print(f"  optimal route:  {chk.true.describe()}")
         if chk.expected is not None:
             print(f"  expected route: {chk.expected.describe()}   (belief '{chk.belief}', as the person imagines it)")
+            print(f"  expected policy run in the real world: {chk.expected_in_truth.describe()}")
         for e in chk.expectations:
             print(f"  [{'ok' if e.held else 'FAILED'}] {e.text}: {e.measured}")
         if not chk.passed:
@@ -116,6 +133,7 @@ def _plan(args) -> int:
             "reference_return": chk.reference_return,
             "optimal": chk.true._asdict(),
             "expected": chk.expected._asdict() if chk.expected is not None else None,
+            "expected_in_truth": chk.expected_in_truth._asdict() if chk.expected is not None else None,
             "expectations": [e._asdict() for e in chk.expectations],
         }
     atomic_write(out / "plan.json", json.dumps(report, indent=2))

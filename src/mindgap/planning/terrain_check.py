@@ -36,6 +36,7 @@ class PlanningCheck(NamedTuple):
     belief: str | None
     true: RouteStats
     expected: RouteStats | None
+    expected_in_truth: RouteStats | None
     true_paths: list[np.ndarray]
     expected_paths: list[np.ndarray]
     expectations: list[Expectation]
@@ -74,12 +75,12 @@ def check_world(
         count: rollouts per plan for the statistics.
         draw: rollouts kept for drawing.
     """
-    k_true, k_belief = jax.random.split(rng.key(seed))
+    k_true, k_belief, k_real = jax.random.split(rng.key(seed), 3)
     p_true = plan(world.params, n)
     pos, rew, alive = rollouts(k_true, world.params, plan_action, count, p_true)
     true = route_stats(world.params, pos, rew, alive)
     true_paths = _paths(pos, alive, draw)
-    expected, expected_paths, bname = None, [], None
+    expected, expected_paths, in_truth, bname = None, [], None, None
     if world.beliefs:
         bname = belief or next(iter(world.beliefs))
         bparams = world.belief(bname)
@@ -87,8 +88,17 @@ def check_world(
         pos, rew, alive = rollouts(k_belief, bparams, plan_action, count, p_b)
         expected = route_stats(bparams, pos, rew, alive)
         expected_paths = _paths(pos, alive, draw)
+        # the policy the person expects, run in the real world: what obeying them would cost
+        in_truth = route_stats(world.params, *rollouts(k_real, world.params, plan_action, count, p_b))
     return PlanningCheck(
-        world.name, bname, true, expected, true_paths, expected_paths, evaluate(world.expect, true, expected)
+        world.name,
+        bname,
+        true,
+        expected,
+        in_truth,
+        true_paths,
+        expected_paths,
+        evaluate(world.expect, true, expected),
     )
 
 

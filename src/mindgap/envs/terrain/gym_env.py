@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import gymnasium as gym
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ... import rng
@@ -64,21 +63,18 @@ class TerrainEnv(gym.Env):
         if seed is not None:
             self._key = rng.key(seed)
         self._key, self._state, obs = _jit_reset(self._key, self.params)
-        return np.asarray(obs, np.float32), self._info()
+        return np.asarray(obs), self._info()
 
     def step(self, action):
         if self._state is None:
             raise RuntimeError("call reset() before step()")
-        a = jnp.asarray(np.asarray(action, np.float32).reshape(2))
+        a = np.asarray(action, np.float32).reshape(2)
         self._key, out, obs = _jit_step(self._key, self._state, a, self.params)
         self._state = out.state
-        return (
-            np.asarray(obs, np.float32),
-            float(out.reward),
-            bool(out.terminated),
-            bool(out.truncated),
-            self._info(),
-        )
+        obs, reward, term, trunc, pos, t = jax.device_get(
+            (obs, out.reward, out.terminated, out.truncated, out.state.pos, out.state.t)
+        )  # one transfer instead of six
+        return obs, float(reward), bool(term), bool(trunc), {"pos": pos, "t": int(t)}
 
     def _info(self) -> dict:
         return {"pos": np.asarray(self._state.pos), "t": int(self._state.t)}
