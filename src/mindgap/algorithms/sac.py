@@ -1,0 +1,175 @@
+"""Soft actor-critic (Haarnoja et al. 2018) as pure functions: ``sac_init``, ``sac_update``, ``sample_action``.
+
+Twin critics with Polyak-averaged targets, a tanh-squashed Gaussian actor, and a fixed or
+automatically tuned entropy coefficient α (target entropy −dim(A)). One update:
+
+* critic: ``y = r + γ(1 − terminal)(min_i Q̄_i(s', a') − α log π(a'|s'))``, ``a' ~ π(·|s')``;
+  loss ``Σ_i mean (Q_i(s, a) − y)²``;
+* actor: ``mean(α log π(ã|s) − min_i Q_i(s, ã))``, ``ã ~ π(·|s)`` reparameterised;
+* α: ``mean(−log α · (log π(ã|s) + target_entropy))``;
+* targets: ``Q̄ ← (1 − τ) Q̄ + τ Q``.
+
+Every function is jittable and vmappable (seeds stack along a leading axis); the training
+loops that step JAX worlds inside ``lax.scan`` are in :mod:`~mindgap.algorithms.sac_loop`,
+and a host loop (gymnasium) calls :func:`sac_update` directly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+
+from ..models.mlp import Params, init_mlp, init_stack, mlp
+
+LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
+
+
+@dataclasses.dataclass(frozen=True)
+class SACConfig:
+    """Hyperparameters of SAC (defaults as in Stable-Baselines3 where it has one)."""
+
+    hidden: tuple[int, ...] = (256, 256)
+    """Hidden layer widths of the actor and of each critic."""
+    lr: float = 3e-4
+    """Adam step size for actor, critics and α."""
+    gamma: float = 0.99
+    """Discount."""
+    tau: float = 0.005
+    """Polyak factor of the target critics."""
+    batch_size: int = 256
+    """Transitions per update."""
+    utd: int = 1
+    """Updates per environment step (update-to-data ratio)."""
+    alpha: float | None = None
+    """Fixed entropy coefficient; None tunes it automatically."""
+    init_alpha: float = 1.0
+    """Starting α when it is tuned."""
+    learning_starts: int = 1000
+    """Environment steps of uniformly random actions before the first update."""
+
+
+class SACParams(NamedTuple):
+    actor: Params
+    critic: Params  # two critics stacked along axis 0
+    target: Params
+    log_alpha: jax.Array
+
+
+class SACState(NamedTuple):
+    params: SACParams
+    actor_opt: optax.OptState
+    critic_opt: optax.OptState
+    alpha_opt: optax.OptState
+    updates: jax.Array
+
+
+class Batch(NamedTuple):
+    """Transitions: obs [B, d], act [B, a], reward [B], next_obs [B, d], terminal [B] (no bootstrap)."""
+
+    obs: jax.Array
+    act: jax.Array
+    reward: jax.Array
+    next_obs: jax.Array
+    terminal: jax.Array
+
+
+def _optimiser(cfg: SACConfig) -> optax.GradientTransformation:
+    return optax.adam(cfg.lr)
+
+
+def sac_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: SACConfig) -> SACState:
+    """Fresh networks and optimiser states."""
+    k_actor, k_critic = jax.random.split(key)
+    actor = init_mlp(k_actor, (obs_dim, *cfg.hidden, 2 * act_dim))
+    critic = init_stack(k_critic, 2, (obs_dim + act_dim, *cfg.hidden, 1))
+    log_alpha = jnp.log(jnp.asarray(cfg.alpha if cfg.alpha is not None else cfg.init_alpha, jnp.float32))
+    params = SACParams(actor, critic, critic, log_alpha)
+    opt = _optimiser(cfg)
+    return SACState(params, opt.init(actor), opt.init(critic), opt.init(log_alpha), jnp.zeros((), jnp.int32))
+
+
+def actor_dist(actor: Params, obs: jax.Array):
+    """Mean and log standard deviation of the pre-tanh Gaussian. obs [..., d] → ([..., a], [..., a])."""
+    out = mlp(actor, obs)
+    mean, log_std = jnp.split(out, 2, axis=-1)
+    return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
+
+
+def sample_action(actor: Params, obs: jax.Array, key: jax.Array):
+    """A squashed-Gaussian action and its log density. obs [..., d] → (action [..., a], log π [...])."""
+    mean, log_std = actor_dist(actor, obs)
+    eps = jax.random.normal(key, mean.shape, mean.dtype)
+    u = mean + jnp.exp(log_std) * eps
+    log_gauss = jnp.sum(-0.5 * eps**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
+    # log |d tanh(u)/du| = log(1 − tanh²u) = 2 (log 2 − u − softplus(−2u)), stable for large |u|
+    log_det = jnp.sum(2.0 * (jnp.log(2.0) - u - jax.nn.softplus(-2.0 * u)), axis=-1)
+    return jnp.tanh(u), log_gauss - log_det
+
+
+def greedy_action(actor: Params, obs: jax.Array) -> jax.Array:
+    """tanh of the Gaussian's mean: the deterministic action used for evaluation."""
+    return jnp.tanh(actor_dist(actor, obs)[0])
+
+
+def q_values(critic: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
+    """Both critics' values. obs [B, d], act [B, a] → [2, B]."""
+    x = jnp.concatenate([obs, act], axis=-1)
+    return jax.vmap(lambda p: mlp(p, x)[..., 0])(critic)
+
+
+def sac_losses(params: SACParams, batch: Batch, key: jax.Array, cfg: SACConfig):
+    """The three losses of one update at ``params`` (used by :func:`sac_update` and its tests)."""
+    k_next, k_pi = jax.random.split(key)
+    alpha = jnp.exp(params.log_alpha)
+    a_next, logp_next = sample_action(params.actor, batch.next_obs, k_next)
+    q_next = jnp.min(q_values(params.target, batch.next_obs, a_next), axis=0) - alpha * logp_next
+    y = jax.lax.stop_gradient(batch.reward + cfg.gamma * (1.0 - batch.terminal) * q_next)
+
+    def critic_loss(critic):
+        q = q_values(critic, batch.obs, batch.act)
+        return jnp.sum(jnp.mean((q - y) ** 2, axis=-1)), q
+
+    def actor_loss(actor, critic):
+        a, logp = sample_action(actor, batch.obs, k_pi)
+        q = jnp.min(q_values(critic, batch.obs, a), axis=0)
+        return jnp.mean(alpha * logp - q), logp
+
+    return critic_loss, actor_loss, y
+
+
+def sac_update(state: SACState, batch: Batch, key: jax.Array, cfg: SACConfig):
+    """One SAC update (critics, then actor with the updated critics, then α, then targets).
+
+    Returns:
+        (new state, metrics dict of scalars).
+    """
+    opt = _optimiser(cfg)
+    p = state.params
+    critic_loss, actor_loss, _ = sac_losses(p, batch, key, cfg)
+    (lc, q), gc = jax.value_and_grad(critic_loss, has_aux=True)(p.critic)
+    upd, critic_opt = opt.update(gc, state.critic_opt, p.critic)
+    critic = optax.apply_updates(p.critic, upd)
+    (la, logp), ga = jax.value_and_grad(actor_loss, has_aux=True)(p.actor, critic)
+    upd, actor_opt = opt.update(ga, state.actor_opt, p.actor)
+    actor = optax.apply_updates(p.actor, upd)
+    log_alpha, alpha_opt = p.log_alpha, state.alpha_opt
+    if cfg.alpha is None:
+        target_entropy = -batch.act.shape[-1]
+        entropy_gap = jax.lax.stop_gradient(jnp.mean(logp) + target_entropy)
+        g_alpha = -entropy_gap  # d/d log α of mean(−log α · (log π + H̄))
+        upd, alpha_opt = opt.update(g_alpha, state.alpha_opt, p.log_alpha)
+        log_alpha = optax.apply_updates(p.log_alpha, upd)
+    target = jax.tree.map(lambda t, o: (1.0 - cfg.tau) * t + cfg.tau * o, p.target, critic)
+    new = SACState(SACParams(actor, critic, target, log_alpha), actor_opt, critic_opt, alpha_opt, state.updates + 1)
+    metrics = {
+        "critic_loss": lc,
+        "actor_loss": la,
+        "alpha": jnp.exp(log_alpha),
+        "q": jnp.mean(q),
+        "entropy": -jnp.mean(logp),
+    }
+    return new, metrics

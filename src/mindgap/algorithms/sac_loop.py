@@ -1,0 +1,132 @@
+"""SAC on a JAX world in one jitted program: ``lax.scan`` over environment steps and updates.
+
+A chunk of training is :func:`run_chunk`: per step it acts (uniformly at random in the
+``"random"`` phase, from the policy otherwise), steps the world, stores the transition
+with the reward the agent optimises (the world's, or a learned model's), restarts finished
+episodes, and performs ``utd`` SAC updates (none in the ``"random"`` phase; with a
+k-nearest-neighbour state-entropy reward in the ``"explore"`` phase of PEBBLE). The
+phase is static, so vmapping a chunk over seeds never executes branches it does not need.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ..envs.terrain import observe, reset, step
+from ..feedback.replay import Replay, replay_add, replay_init, replay_sample
+from .sac import Batch, SACConfig, SACState, greedy_action, sac_init, sac_update, sample_action
+
+PHASES = ("random", "explore", "train")
+
+
+class LoopState(NamedTuple):
+    """Everything a run carries between chunks (one seed; stack along axis 0 for many)."""
+
+    sac: SACState
+    replay: Replay
+    env: object  # TerrainState
+    key: jax.Array
+    steps: jax.Array
+
+
+def loop_init(key: jax.Array, world_params, cfg: SACConfig, capacity: int) -> LoopState:
+    k_sac, k_env, k_run = jax.random.split(key, 3)
+    env = reset(k_env, world_params)
+    obs_dim, act_dim = 2, 2
+    return LoopState(
+        sac_init(k_sac, obs_dim, act_dim, cfg),
+        replay_init(capacity, obs_dim, act_dim),
+        env,
+        k_run,
+        jnp.zeros((), jnp.int32),
+    )
+
+
+def state_entropy_reward(batch: Batch, pool: jax.Array, k: int) -> jax.Array:
+    """PEBBLE's intrinsic reward: log(1 + distance to the k-th nearest neighbour) of each next state.
+
+    Distances are to ``pool [M, d]`` (states drawn from the buffer); the reward is divided by
+    its standard deviation over the batch so its scale does not depend on the world's size.
+    """
+    d = jnp.linalg.norm(batch.next_obs[:, None, :] - pool[None, :, :], axis=-1)
+    kth = -jax.lax.top_k(-d, k + 1)[0][:, -1]  # k+1: a state can meet itself in the pool
+    r = jnp.log1p(kth)
+    return r / (jnp.std(r) + 1e-6)
+
+
+@partial(jax.jit, static_argnames=("n_steps", "cfg", "phase", "reward_fn", "knn"))
+def run_chunk(
+    ls: LoopState,
+    world_params,
+    reward_params,
+    *,
+    n_steps: int,
+    cfg: SACConfig,
+    phase: str,
+    reward_fn=None,
+    knn: int = 5,
+) -> LoopState:
+    """``n_steps`` environment steps (and their updates) of one seed; vmap for many.
+
+    Args:
+        reward_params: parameters of ``reward_fn`` (ignored without one).
+        reward_fn: ``reward_fn(reward_params, obs [B, d], act [B, a], next_obs [B, d]) → [B]``
+            stored as the reward to optimise; None stores the world's own reward.
+    """
+    if phase not in PHASES:
+        raise ValueError(f"phase must be one of {PHASES}, got {phase!r}")
+
+    def body(ls: LoopState, _):
+        key, k_act, k_env, k_reset, k_upd = jax.random.split(ls.key, 5)
+        obs = observe(ls.env, world_params)
+        if phase == "random":
+            act = jax.random.uniform(k_act, (2,), minval=-1.0, maxval=1.0)
+        else:
+            act = sample_action(ls.sac.params.actor, obs, k_act)[0]
+        out = step(k_env, ls.env, act, world_params)
+        next_obs = observe(out.state, world_params)
+        if reward_fn is None:
+            r = out.reward
+        else:
+            r = reward_fn(reward_params, obs[None], act[None], next_obs[None])[0]
+        replay = replay_add(ls.replay, obs, act, next_obs, out.reward, r, out.terminated, ls.env.t)
+        env = jax.tree.map(lambda a, b: jnp.where(out.state.done, a, b), reset(k_reset, world_params), out.state)
+        sac = ls.sac
+        if phase != "random":
+
+            def update(sac, k):
+                k_batch, k_pool, k_sac = jax.random.split(k, 3)
+                batch = replay_sample(replay, k_batch, cfg.batch_size)
+                if phase == "explore":
+                    pool = replay_sample(replay, k_pool, 1024).next_obs
+                    batch = batch._replace(reward=state_entropy_reward(batch, pool, knn))
+                return sac_update(sac, batch, k_sac, cfg)[0], None
+
+            sac, _ = jax.lax.scan(update, sac, jax.random.split(k_upd, cfg.utd))
+        return LoopState(sac, replay, env, key, ls.steps + 1), None
+
+    ls, _ = jax.lax.scan(body, ls, None, length=n_steps)
+    return ls
+
+
+def _actor_policy(pp, pos):
+    actor, size = pp
+    return greedy_action(actor, 2.0 * pos / size - 1.0)
+
+
+def evaluate(key: jax.Array, actor, world_params, episodes: int):
+    """Greedy-policy rollouts under the world's true reward.
+
+    Returns:
+        (returns [episodes], positions [episodes, T+1, 2], alive [episodes, T]).
+    """
+    from ..planning.terrain import rollouts
+
+    h, w = world_params.grid.shape
+    size = jnp.array([w, h], jnp.float32)
+    pos, rew, alive = rollouts(key, world_params, _actor_policy, episodes, (actor, size))
+    return rew.sum(-1), pos, alive

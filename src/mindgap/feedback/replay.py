@@ -1,0 +1,87 @@
+"""A replay buffer as a pytree: fixed capacity, ring-ordered, relabelled in place.
+
+Each transition keeps the observations and action that any learned reward needs, the
+environment's own reward, the reward the agent currently optimises (``reward``:
+the environment's for an oracle, a learned model's otherwise — :func:`relabel` rewrites
+it), whether it ended the episode in a terminal state, and its step index within the
+episode (segments for preference queries must not cross episodes).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ..algorithms.sac import Batch
+
+
+class Replay(NamedTuple):
+    """obs, next_obs [N, d]; act [N, a]; env_reward, reward [N]; terminal [N]; ep_step [N] (−1 when empty)."""
+
+    obs: jax.Array
+    act: jax.Array
+    next_obs: jax.Array
+    env_reward: jax.Array
+    reward: jax.Array
+    terminal: jax.Array
+    ep_step: jax.Array
+    ptr: jax.Array
+    size: jax.Array
+
+    @property
+    def capacity(self) -> int:
+        return self.obs.shape[-2]
+
+
+def replay_init(capacity: int, obs_dim: int, act_dim: int) -> Replay:
+    f = jnp.float32
+    return Replay(
+        obs=jnp.zeros((capacity, obs_dim), f),
+        act=jnp.zeros((capacity, act_dim), f),
+        next_obs=jnp.zeros((capacity, obs_dim), f),
+        env_reward=jnp.zeros(capacity, f),
+        reward=jnp.zeros(capacity, f),
+        terminal=jnp.zeros(capacity, bool),
+        ep_step=jnp.full(capacity, -1, jnp.int32),
+        ptr=jnp.zeros((), jnp.int32),
+        size=jnp.zeros((), jnp.int32),
+    )
+
+
+def replay_add(buf: Replay, obs, act, next_obs, env_reward, reward, terminal, ep_step) -> Replay:
+    """Write one transition at the ring pointer (overwriting the oldest when full)."""
+    i = buf.ptr
+    return Replay(
+        obs=buf.obs.at[i].set(obs),
+        act=buf.act.at[i].set(act),
+        next_obs=buf.next_obs.at[i].set(next_obs),
+        env_reward=buf.env_reward.at[i].set(env_reward),
+        reward=buf.reward.at[i].set(reward),
+        terminal=buf.terminal.at[i].set(terminal),
+        ep_step=buf.ep_step.at[i].set(ep_step),
+        ptr=(i + 1) % buf.capacity,
+        size=jnp.minimum(buf.size + 1, buf.capacity),
+    )
+
+
+def replay_sample(buf: Replay, key: jax.Array, batch_size: int) -> Batch:
+    """Uniform minibatch (with replacement) of the stored transitions, with the ``reward`` column."""
+    idx = jax.random.randint(key, (batch_size,), 0, jnp.maximum(buf.size, 1))
+    return Batch(buf.obs[idx], buf.act[idx], buf.reward[idx], buf.next_obs[idx], buf.terminal[idx].astype(jnp.float32))
+
+
+def relabel(buf: Replay, reward_fn, reward_params, chunk: int = 4096) -> Replay:
+    """Recompute the ``reward`` column with ``reward_fn(reward_params, obs, act, next_obs)``.
+
+    Only the reward column changes; everything else, the environment's reward included,
+    stays as it was. Work goes in chunks so that large buffers do not need one huge batch.
+    """
+    n = buf.capacity
+    pad = (-n) % chunk
+    split = lambda x: jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1)).reshape(-1, chunk, *x.shape[1:])
+    r = jax.lax.map(lambda xs: reward_fn(reward_params, *xs), (split(buf.obs), split(buf.act), split(buf.next_obs)))
+    r = r.reshape(-1)[:n]
+    filled = jnp.arange(n) < buf.size
+    return buf._replace(reward=jnp.where(filled, r, buf.reward))
