@@ -3,6 +3,8 @@
 mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
+mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
+mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 """
 
@@ -14,8 +16,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-DOMAINS = ("grid7",)
-EXPERIMENTS = ("table1",)
+DOMAINS = ("grid7", "coffee")
+EXPERIMENTS = ("table1", "coffee")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -26,6 +28,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
     r.add_argument("--fast", action="store_true", help="the quick preset (seconds to minutes)")
     r.add_argument("--seeds", type=int, help="seeds per setting (overrides the preset)")
+    r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
     r.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -50,7 +53,14 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--seed", type=int, default=0, help="random seed")
     g.add_argument("--demos", type=int, default=2000, help="number of simulated rated demonstrations")
     g.add_argument("--length", type=int, default=10, help="steps per simulated demonstration")
-    g.add_argument("--param", default="tied", choices=("tied", "per-sa", "full"), help="belief parameterisation")
+    g.add_argument(
+        "--param",
+        choices=("tied", "per-sa", "full", "factored"),
+        help="belief parameterisation (grid7: tied by default; coffee: factored by default)",
+    )
+    g.add_argument("--robot", help="coffee: robot type of the simulated person, or of a ratings file without a robot column")
+    g.add_argument("--normalise", default="minmax", choices=("minmax", "none"), help="coffee: per-person rating scaling")
+    g.add_argument("--no-filter", action="store_true", help="coffee: keep people who fail the sanity check")
     g.add_argument("--estimator", default="pathwise", choices=("pathwise", "score"), help="ELBO gradient estimator")
     g.add_argument("--minus", action="store_true", help="GeReL⁻: freeze the belief at the true dynamics")
     g.add_argument("--max-iter", type=int, help="iteration cap")
@@ -97,21 +107,19 @@ def _reproduce(args) -> int:
 
     if args.assemble and (args.fresh or args.shard):
         raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
+    if args.name == "coffee":
+        from .experiments import coffee_cli
+
+        return coffee_cli.reproduce(args, _shard(args.shard))
+    if args.participants is not None:
+        raise ValueError("--participants belongs to the coffee study")
     cfg = table1.preset("fast" if args.fast else "full")
     if args.seeds is not None:
         if args.seeds < 1:
             raise ValueError("--seeds must be at least 1")
         cfg = replace(cfg, seeds=args.seeds, demo_count_seeds=min(cfg.demo_count_seeds, args.seeds))
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
-    shard = None
-    if args.shard:
-        try:
-            i, n = (int(x) for x in args.shard.split("/"))
-        except ValueError:
-            raise ValueError(f"--shard must look like 0/2, got {args.shard!r}") from None
-        if not 0 <= i < n:
-            raise ValueError(f"--shard {args.shard}: need 0 <= I < N")
-        shard = (i, n)
+    shard = _shard(args.shard)
     summary = table1.run(cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble)
     if summary is None:
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
@@ -123,7 +131,23 @@ def _reproduce(args) -> int:
     return 0
 
 
+def _shard(spec: str | None) -> tuple[int, int] | None:
+    if not spec:
+        return None
+    try:
+        i, n = (int(x) for x in spec.split("/"))
+    except ValueError:
+        raise ValueError(f"--shard must look like 0/2, got {spec!r}") from None
+    if not 0 <= i < n:
+        raise ValueError(f"--shard {spec}: need 0 <= I < N")
+    return i, n
+
+
 def _gerel(args) -> int:
+    if args.domain == "coffee":
+        from .experiments import coffee_cli
+
+        return coffee_cli.gerel(args)
     import jax
     import numpy as np
 
@@ -139,6 +163,9 @@ def _gerel(args) -> int:
 
     if args.domain not in DOMAINS:
         raise ValueError(f"unknown domain {args.domain!r}: choose from {', '.join(DOMAINS)}")
+    args.param = args.param or "tied"
+    if args.param == "factored":
+        raise ValueError("--param factored needs a factored domain (coffee); grid7 takes tied, per-sa or full")
     corners = None
     if args.corners:
         try:

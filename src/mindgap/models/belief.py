@@ -9,6 +9,10 @@ onto a full ``[S, A, S]`` transition tensor:
   plus staying; ``full=True`` puts every state in the support.
 - **tied**: one factor per action over relative moves shared by all states ("Up moves
   the robot down"); needs the domain's move table.
+- **factored**: a few named probabilities of a factored domain, each a Beta (or
+  Dirichlet) shared by every pair it governs (the coffee robot's spill probability
+  when holding coffee and umbrella); every other pair keeps its true, deterministic
+  next state through one fixed single-outcome factor.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ class BeliefSpace:
         factor: ``[S, A]`` int, which factor governs ``(s, a)``.
         targets: ``[S, A, M]`` int, next state of outcome ``m`` of that factor at ``(s, a)``.
         mask: ``[F, M]`` bool, which outcomes exist.
-        kind: ``"tied"``, ``"per-sa"`` or ``"full"`` (static metadata).
+        kind: ``"tied"``, ``"per-sa"``, ``"full"`` or ``"factored"`` (static metadata).
     """
 
     factor: jnp.ndarray
@@ -134,3 +138,44 @@ def tied(move_targets, n_actions: int) -> BeliefSpace:
     targets = np.broadcast_to(mt[:, None, :], (n_s, n_actions, n_m))
     factor = np.broadcast_to(np.arange(n_actions, dtype=np.int32), (n_s, n_actions))
     return BeliefSpace(jnp.asarray(factor), jnp.asarray(targets), jnp.ones((n_actions, n_m), bool), "tied")
+
+
+def factored(factor, targets, n_outcomes) -> BeliefSpace:
+    """A few shared factor distributions; all other pairs fixed to one known next state.
+
+    Factor ``f`` is a ``Dir(α_f)`` over ``n_outcomes[f]`` outcomes (a Beta for two) and
+    governs every ``(s, a)`` with ``factor[s, a] == f``. Pairs with ``factor == -1`` go
+    to ``targets[s, a, 0]`` with certainty: they share one extra factor with a single
+    outcome (a point mass, so it adds nothing to the ELBO and is never moved by a
+    gradient). It is the last row of ``θ``.
+
+    Args:
+        factor: ``[S, A]`` int, the factor of each pair, or ``-1`` for a fixed pair.
+        targets: ``[S, A, M]`` int, next state of each outcome (of the fixed next state
+            in slot 0 for fixed pairs).
+        n_outcomes: ``[F]`` outcomes of each factor (``2 <= n <= M``).
+
+    Raises:
+        ValueError: on inconsistent shapes, a factor id out of range, a factor that
+            governs no pair, or a next state outside ``0..S-1``.
+    """
+    factor = np.asarray(factor, np.int32)
+    targets = np.asarray(targets, np.int32)
+    n_outcomes = np.asarray(n_outcomes, np.int32).reshape(-1)
+    if factor.ndim != 2 or targets.shape[:2] != factor.shape or targets.ndim != 3:
+        raise ValueError(f"factor [S, A] {factor.shape} and targets [S, A, M] {targets.shape} do not match")
+    n_s, _, width = targets.shape
+    n_f = len(n_outcomes)
+    if np.any((factor < -1) | (factor >= n_f)):
+        raise ValueError(f"factor ids must lie in -1..{n_f - 1}")
+    if np.any((n_outcomes < 2) | (n_outcomes > width)):
+        raise ValueError(f"each factor needs 2..{width} outcomes, got {n_outcomes.tolist()}")
+    unused = sorted(set(range(n_f)) - set(np.unique(factor).tolist()))
+    if unused:
+        raise ValueError(f"factor(s) {unused} govern no state-action pair")
+    if np.any((targets < 0) | (targets >= n_s)):
+        raise ValueError(f"targets must be state ids 0..{n_s - 1}")
+    mask = np.zeros((n_f + 1, width), bool)
+    mask[np.arange(n_f + 1)[:, None], np.arange(width)] = np.arange(width) < np.append(n_outcomes, 1)[:, None]
+    full_factor = np.where(factor < 0, n_f, factor).astype(np.int32)
+    return BeliefSpace(jnp.asarray(full_factor), jnp.asarray(targets), jnp.asarray(mask), "factored")
