@@ -6,6 +6,7 @@ mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
+mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
 """
 
 from __future__ import annotations
@@ -35,9 +36,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
-    from .commands import worlds
+    from .commands import learn, worlds
 
     worlds.add_parser(sub)
+    learn.add_parsers(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
     g.add_argument("--domain", default="grid7", help=f"domain: {', '.join(DOMAINS)}")
@@ -94,6 +96,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import worlds
 
             return worlds.run(args)
+        if args.command in ("sac", "pebble", "drlhp"):
+            from .commands import learn
+
+            return learn.run(args)
         return _gerel(args)
     except (ValueError, RuntimeError, FloatingPointError) as e:
         print(f"mindgap: error: {e}", file=sys.stderr)

@@ -80,7 +80,8 @@ def relabel(buf: Replay, reward_fn, reward_params, chunk: int = 4096) -> Replay:
     """
     n = buf.capacity
     pad = (-n) % chunk
-    split = lambda x: jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1)).reshape(-1, chunk, *x.shape[1:])
+    def split(x):
+        return jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1)).reshape(-1, chunk, *x.shape[1:])
     r = jax.lax.map(lambda xs: reward_fn(reward_params, *xs), (split(buf.obs), split(buf.act), split(buf.next_obs)))
     r = r.reshape(-1)[:n]
     filled = jnp.arange(n) < buf.size

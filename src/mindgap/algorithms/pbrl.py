@@ -1,0 +1,301 @@
+"""The preference-based RL engine and its three configurations: SAC (oracle), PEBBLE, DRLHP.
+
+One loop, vmapped over seeds, in jitted chunks (:func:`~mindgap.algorithms.sac_loop.run_chunk`):
+
+1. ``random``: uniformly random actions until ``sac.learning_starts``;
+2. ``explore`` (PEBBLE only, Lee et al. 2021): SAC on the k-nearest-neighbour state-entropy
+   reward for ``explore_steps``; the critic is then reset, the policy kept;
+3. ``train``: every ``feedback_every`` steps while the query budget lasts, a round of
+   feedback — pick ``per_round`` pairs of segments with the sampler, ask the simulated
+   person (:mod:`~mindgap.teachers.preference`), fit the reward ensemble, relabel the
+   whole buffer — and in between SAC on the ensemble's mean reward.
+
+SAC ("the oracle") skips the feedback and optimises the world's own reward. DRLHP
+(Christiano et al. 2017) is the same loop without exploration pre-training or critic
+reset, with disagreement sampling; its policy optimiser is SAC here (the original used
+A2C/TRPO) so that all methods differ only in how they learn the reward.
+
+Runs checkpoint after every chunk to ``OUT/checkpoint.npz`` and resume from it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import rng
+from .._io import atomic_write
+from ..checkpoint import load_pytree, save_pytree
+from ..feedback.queries import SAMPLERS, select_queries
+from ..feedback.replay import relabel
+from ..models.reward_ensemble import (
+    PrefData,
+    RewardConfig,
+    RewardState,
+    ensemble_reward,
+    prefs_add,
+    prefs_init,
+    reward_init,
+    train_reward,
+)
+from ..teachers.preference import TeacherConfig, answer
+from .sac import SACConfig, sac_init
+from .sac_loop import LoopState, evaluate, loop_init, run_chunk
+
+METHODS = ("sac", "pebble", "drlhp")
+
+
+@dataclasses.dataclass(frozen=True)
+class PbRLConfig:
+    """One run of the engine (all seeds share it)."""
+
+    method: str = "pebble"
+    """sac (oracle on the true reward), pebble or drlhp."""
+    total_steps: int = 40_000
+    """Environment steps per seed."""
+    chunk: int = 1000
+    """Steps per jitted chunk; every boundary below is a multiple of it."""
+    eval_every: int = 2000
+    """Steps between evaluations of the greedy policy under the true reward."""
+    eval_episodes: int = 10
+    """Episodes per evaluation."""
+    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
+    reward: RewardConfig = RewardConfig()
+    queries: int = 800
+    """Total query budget (pairs shown)."""
+    per_round: int = 50
+    """Queries per feedback round."""
+    feedback_every: int = 2000
+    """Steps between feedback rounds."""
+    sampler: str = "disagreement"
+    """uniform, disagreement or entropy."""
+    candidates: int = 10
+    """Pairs drawn per query kept (score-based samplers)."""
+    segment: int = 10
+    """Steps per segment."""
+    explore_steps: int = 0
+    """State-entropy pre-training steps (PEBBLE)."""
+    knn: int = 5
+    """k of the k-NN entropy estimate."""
+    reset_critic: bool = False
+    """Re-initialise the critic after pre-training (PEBBLE)."""
+    teacher: TeacherConfig = TeacherConfig()
+    seed: int = 0
+    """Base seed; seed i of a run uses seed + i."""
+
+    def check(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+        if self.sampler not in SAMPLERS:
+            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
+            if getattr(self, name) % self.chunk:
+                raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")
+        if self.sac.learning_starts % self.chunk:
+            raise ValueError(f"sac.learning_starts must be a multiple of chunk ({self.chunk})")
+        if self.method != "sac" and (self.queries < 1 or self.per_round < 1):
+            raise ValueError("queries and per_round must be at least 1")
+        if self.learning_steps() >= self.total_steps:
+            raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
+
+    def learning_steps(self) -> int:
+        """First step of the ``train`` phase."""
+        return self.sac.learning_starts + self.explore_steps
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def method_config(method: str, **overrides) -> PbRLConfig:
+    """The defaults of each method, with ``overrides`` applied."""
+    base = {
+        "sac": dict(method="sac", queries=0),
+        "pebble": dict(method="pebble", explore_steps=4000, reset_critic=True, sampler="disagreement"),
+        "drlhp": dict(method="drlhp", sampler="disagreement"),
+    }
+    if method not in base:
+        raise ValueError(f"unknown method {method!r}: choose from {', '.join(METHODS)}")
+    cfg = PbRLConfig(**{**base[method], **overrides})
+    cfg.check()
+    return cfg
+
+
+class Carry(NamedTuple):
+    """Everything a run carries between chunks, each leaf with a leading seed axis."""
+
+    loop: LoopState
+    reward: RewardState
+    prefs: PrefData
+    key: jax.Array
+    queries: jax.Array
+
+
+def _init(keys, world_params, cfg: PbRLConfig) -> Carry:
+    def one(k):
+        k_loop, k_rew, k_run = jax.random.split(k, 3)
+        return Carry(
+            loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
+            reward_init(k_rew, 2, 2, cfg.reward),
+            prefs_init(max(cfg.queries, 1), cfg.segment, 2, 2),
+            k_run,
+            jnp.zeros((), jnp.int32),
+        )
+
+    return jax.vmap(one)(keys)
+
+
+@partial(jax.jit, static_argnames=("cfg", "tcfg"))
+def _feedback(carry: Carry, world_params, belief_params, cfg: PbRLConfig, tcfg: TeacherConfig):
+    """One feedback round of every seed: query, answer, fit the ensemble, relabel the buffer."""
+
+    def one(c: Carry):
+        key, k_q, k_t, k_r = jax.random.split(c.key, 4)
+        left = cfg.queries - c.queries
+        seg_a, seg_b = select_queries(
+            k_q, c.loop.replay, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
+        )
+        labels, answered = answer(k_t, seg_a, seg_b, world_params, belief_params, tcfg)
+        answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
+        prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
+        rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
+        replay = relabel(c.loop.replay, ensemble_reward, rew.params)
+        shown = jnp.minimum(cfg.per_round, left)
+        return c._replace(
+            loop=c.loop._replace(replay=replay), reward=rew, prefs=prefs, key=key, queries=c.queries + shown
+        ), (loss, acc)
+
+    return jax.vmap(one)(carry)
+
+
+@partial(jax.jit, static_argnames=("cfg",))
+def _reset_critic(carry: Carry, cfg: PbRLConfig) -> Carry:
+    def one(c: Carry):
+        key, k = jax.random.split(c.key)
+        fresh = sac_init(k, 2, 2, cfg.sac)
+        sac = c.loop.sac
+        params = sac.params._replace(critic=fresh.params.critic, target=fresh.params.critic)
+        sac = sac._replace(params=params, critic_opt=fresh.critic_opt)
+        return c._replace(loop=c.loop._replace(sac=sac), key=key)
+
+    return jax.vmap(one)(carry)
+
+
+def _chunk(carry: Carry, world_params, cfg: PbRLConfig, phase: str) -> Carry:
+    learned = cfg.method != "sac" and phase == "train"
+    loop = jax.vmap(
+        lambda ls, rp: run_chunk(
+            ls,
+            world_params,
+            rp,
+            n_steps=cfg.chunk,
+            cfg=cfg.sac,
+            phase=phase,
+            reward_fn=ensemble_reward if learned else None,
+            knn=cfg.knn,
+        )
+    )(carry.loop, carry.reward.params)
+    return carry._replace(loop=loop)
+
+
+def _evaluate(carry: Carry, world_params, episodes: int, step: int, base_seed: int):
+    keys = jax.random.split(rng.key(10_000 + base_seed + step), carry.queries.shape[0])
+    return jax.vmap(lambda k, a: evaluate(k, a, world_params, episodes))(keys, carry.loop.sac.params.actor)
+
+
+def train(
+    world,
+    cfg: PbRLConfig,
+    seeds: int = 1,
+    teacher: str = "true",
+    belief: str | None = None,
+    out: Path | None = None,
+    progress: bool = True,
+    fresh: bool = False,
+) -> dict:
+    """Run ``seeds`` seeds of ``cfg.method`` on a terrain world; checkpoint to ``out``.
+
+    Args:
+        world: a :class:`~mindgap.envs.terrain.TerrainWorld`.
+        teacher: ``"biased"`` — the person scores segments with r_H + log T_H under
+            ``belief`` (default: the world's first); ``"true"`` — the ordinary B-Pref
+            teacher (r_H only).
+
+    Returns:
+        dict with ``curve`` (rows of seed, step, return, queries), ``final_returns``
+        [seeds, episodes], ``paths`` (per seed, greedy rollouts) and ``config``.
+    """
+    cfg.check()
+    if teacher not in ("biased", "true"):
+        raise ValueError(f"teacher must be 'biased' or 'true', got {teacher!r}")
+    if seeds < 1:
+        raise ValueError("seeds must be at least 1")
+    params = world.params
+    belief_params = world.belief(belief) if teacher == "biased" else None
+    tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher == "biased")
+    meta = {"world": world.name, "source": world.source, "seeds": seeds, "teacher": teacher, "belief": belief}
+    meta["config"] = cfg.as_dict()
+    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+    step, rows = 0, []
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        cfg_path, ckpt = out / "config.json", out / "checkpoint.npz"
+        if fresh:
+            ckpt.unlink(missing_ok=True)
+        if cfg_path.exists() and ckpt.exists():
+            if json.loads(cfg_path.read_text()) != json.loads(json.dumps(meta)):
+                raise ValueError(f"{out} holds a run with other settings; use another --out or --fresh")
+            carry, extra = load_pytree(ckpt, carry)
+            step = int(extra["step"])
+            rows = [tuple(r) for r in extra["rows"].tolist()]
+        atomic_write(cfg_path, json.dumps(meta, indent=2))
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=cfg.total_steps, initial=step, desc=f"{cfg.method} {world.name}", unit="step")
+    first_feedback = cfg.learning_steps()
+    while step < cfg.total_steps:
+        if step < cfg.sac.learning_starts:
+            phase = "random"
+        elif step < first_feedback:
+            phase = "explore"
+        else:
+            phase = "train"
+        if cfg.method != "sac" and phase == "train":
+            due = (step - first_feedback) % cfg.feedback_every == 0
+            if due and int(carry.queries.min()) < cfg.queries:
+                carry, (loss, acc) = _feedback(carry, params, belief_params, cfg, tcfg)
+            if step == first_feedback and cfg.reset_critic:
+                carry = _reset_critic(carry, cfg)
+        carry = _chunk(carry, params, cfg, phase)
+        step += cfg.chunk
+        if step % cfg.eval_every == 0 or step == cfg.total_steps:
+            rets = np.asarray(_evaluate(carry, params, cfg.eval_episodes, step, cfg.seed)[0])
+            q = np.asarray(carry.queries)
+            rows += [(s, step, float(rets[s].mean()), int(q[s])) for s in range(seeds)]
+            if bar is not None:
+                bar.set_postfix(ret=f"{rets.mean():.1f}", queries=int(q.mean()))
+        if out is not None:
+            save_pytree(out / "checkpoint.npz", carry, step=step, rows=np.asarray(rows, np.float64).reshape(-1, 4))
+        if bar is not None:
+            bar.update(cfg.chunk)
+    if bar is not None:
+        bar.close()
+    final, pos, alive = _evaluate(carry, params, max(cfg.eval_episodes, 20), cfg.total_steps + 1, cfg.seed)
+    paths = []
+    for s in range(seeds):
+        seed_paths = []
+        for e in range(min(3, pos.shape[1])):
+            n = int(np.asarray(alive[s, e]).sum())
+            seed_paths.append(np.asarray(pos[s, e, : n + 1]))
+        paths.append(seed_paths)
+    return {"curve": rows, "final_returns": np.asarray(final), "paths": paths, "config": meta, "carry": carry}

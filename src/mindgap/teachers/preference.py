@@ -1,0 +1,82 @@
+"""The simulated person who compares two segments (SPEC §4, Eq. 3.5, B-Pref's knobs).
+
+The person scores a segment by ``Σ_t γ^{L−1−t} [r_H(s_t, a_t, s_{t+1}) + log T_H(s_{t+1} | s_t, a_t)]``
+— what they want plus how plausible each step looks under their belief — and prefers
+the higher score with Bradley–Terry probability ``σ(β (S₁ − S₂))``. The B-Pref knobs
+(Lee et al. 2021b) make the answers less than ideal: ``gamma`` (myopia), ``mistake``
+(flip probability), ``skip`` and ``equal`` thresholds. With ``belief=None`` the log T_H
+term is off and this is the ordinary B-Pref teacher.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from ..envs.terrain import TerrainState, log_prob_pos, position, reward
+from ..feedback.segments import Segments
+
+
+@dataclasses.dataclass(frozen=True)
+class TeacherConfig:
+    """How the simulated person answers (hashable: it is a static argument of jitted code)."""
+
+    beta: float | None = None
+    """Rationality of Bradley–Terry; None answers deterministically (B-Pref's oracle)."""
+    gamma: float = 1.0
+    """Myopic discount: step t of L counts γ^(L−1−t)."""
+    mistake: float = 0.0
+    """Probability of flipping an answer."""
+    skip: float = 0.0
+    """Skip a query when both scores are below skip × (largest |score| in the batch); 0 never skips."""
+    equal: float = 0.0
+    """Answer "equal" (label 0.5) when |S₁ − S₂| < equal × (largest |score| in the batch)."""
+    log_t_floor: float = -20.0
+    """Per-step floor on log T_H, so one step that looks impossible cannot decide alone."""
+    use_belief: bool = True
+    """Include the log T_H term (False: the ordinary B-Pref teacher)."""
+
+
+def segment_scores(seg: Segments, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
+    """The person's score of each segment. seg [K, L, ·] → [K]."""
+    length = seg.mask.shape[-1]
+
+    def step_score(o, a, o2):
+        s, s2 = position(o, world_params), position(o2, world_params)
+        zero = jnp.zeros((), jnp.int32)
+        r = reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world_params)
+        if belief_params is not None and cfg.use_belief:
+            r = r + jnp.maximum(log_prob_pos(belief_params, s, a, s2), cfg.log_t_floor)
+        return r
+
+    per_step = jax.vmap(jax.vmap(step_score))(seg.obs, seg.act, seg.next_obs)  # [K, L]
+    weights = cfg.gamma ** jnp.arange(length - 1, -1, -1, dtype=jnp.float32)
+    return jnp.sum(jnp.where(seg.mask, per_step, 0.0) * weights, axis=-1)
+
+
+def answer(key: jax.Array, seg_a: Segments, seg_b: Segments, world_params, belief_params, cfg: TeacherConfig):
+    """Labels for K queries: 1 = first preferred, 0 = second, 0.5 = equal; and which were answered.
+
+    Returns:
+        (labels [K] float32, answered [K] bool).
+    """
+    k_bt, k_mistake = jax.random.split(key)
+    sa = segment_scores(seg_a, world_params, belief_params, cfg)
+    sb = segment_scores(seg_b, world_params, belief_params, cfg)
+    scale = jnp.max(jnp.abs(jnp.concatenate([sa, sb])))
+    answered = jnp.ones(sa.shape, bool)
+    if cfg.skip > 0:
+        answered = jnp.maximum(sa, sb) >= cfg.skip * scale
+    if cfg.beta is None:
+        labels = jnp.where(sa == sb, 0.5, (sa > sb).astype(jnp.float32))
+    else:
+        p = jax.nn.sigmoid(cfg.beta * (sa - sb))
+        labels = jax.random.bernoulli(k_bt, p).astype(jnp.float32)
+    if cfg.mistake > 0:
+        flip = jax.random.bernoulli(k_mistake, cfg.mistake, labels.shape)
+        labels = jnp.where(flip, 1.0 - labels, labels)
+    if cfg.equal > 0:
+        labels = jnp.where(jnp.abs(sa - sb) < cfg.equal * scale, 0.5, labels)
+    return labels, answered
