@@ -105,7 +105,8 @@ def test_update_matches_naive_reference(setup):
     cfg, state, batch, key = setup
     new, metrics = jax.jit(sac_update, static_argnums=3)(state, batch, key, cfg)
     actor, critic, target, log_alpha, la = naive_update(state, batch, key, cfg)
-    close = lambda a, b: jax.tree.map(lambda x, y: np.testing.assert_allclose(x, y, rtol=2e-4, atol=2e-5), a, b)
+    def close(a, b):
+        return jax.tree.map(lambda x, y: np.testing.assert_allclose(x, y, rtol=2e-4, atol=2e-5), a, b)
     close(new.params.critic, critic)
     close(new.params.actor, actor)
     close(new.params.target, target)

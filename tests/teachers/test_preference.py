@@ -50,7 +50,8 @@ def _pairs(nav1, n=400):
     """n pairs whose scores differ clearly: moving toward vs away from the goal on d1-like progress."""
     long_ = _segments(nav1, [(12.5, 3.5)], [-1.0, 0.0], length=3)
     short = long_._replace(mask=long_.mask.at[:, 1:].set(False))  # 1 step instead of 3: return −1 vs −3
-    rep = lambda s: jax.tree.map(lambda x: jnp.repeat(x, n, 0), s)
+    def rep(s):
+        return jax.tree.map(lambda x: jnp.repeat(x, n, 0), s)
     return rep(short), rep(long_)
 
 
