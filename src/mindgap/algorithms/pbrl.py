@@ -209,6 +209,16 @@ def _evaluate(carry: Carry, world_params, episodes: int, step: int, base_seed: i
     return jax.vmap(lambda k, a: evaluate(k, a, world_params, episodes))(keys, carry.loop.sac.params.actor)
 
 
+def _fingerprint(world) -> str:
+    """Hash of everything that defines the world (layout, rewards, dynamics, beliefs)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for leaf in jax.tree.leaves((world.params, world.beliefs)):
+        h.update(np.asarray(leaf).tobytes())
+    return h.hexdigest()[:16]
+
+
 def train(
     world,
     cfg: PbRLConfig,
@@ -239,7 +249,8 @@ def train(
     params = world.params
     belief_params = world.belief(belief) if teacher == "biased" else None
     tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher == "biased")
-    meta = {"world": world.name, "source": world.source, "seeds": seeds, "teacher": teacher, "belief": belief}
+    meta = {"world": world.name, "source": world.source, "world_hash": _fingerprint(world), "seeds": seeds}
+    meta.update(teacher=teacher, belief=belief)
     meta["config"] = cfg.as_dict()
     carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
     step, rows = 0, []
