@@ -1,6 +1,7 @@
 """The preference teacher: scores, the log T_H term, and B-Pref's knobs."""
 
 import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
