@@ -76,6 +76,16 @@ def test_gerel_coffee_simulated_person_and_bad_files(tmp_path, capsys):
         assert main(["gerel", "--domain", "coffee", "--ratings", str(bad), "--out", str(out), "--quiet"]) == 2
         assert msg in capsys.readouterr().err
         assert not out.exists()
+    # without a robot column GeReL⁻ cannot know the true dynamics; a failed sanity check drops the person
+    lines = [line.split(",") for line in text.splitlines()]
+    no_robot = "\n".join(",".join(cells[:1] + cells[2:]) for cells in lines) + "\n"
+    bad.write_text(no_robot)
+    assert main(["gerel", "--domain", "coffee", "--minus", "--ratings", str(bad), "--quiet"]) == 2
+    assert "add a robot column or pass --robot" in capsys.readouterr().err
+    sanity_top = [cells[:6] + ["10"] + cells[7:] if cells[2] == "sanity-random" else cells for cells in lines]
+    bad.write_text("\n".join(",".join(c) for c in sanity_top) + "\n")
+    assert main(["gerel", "--domain", "coffee", "--ratings", str(bad), "--quiet"]) == 2
+    assert "failed the sanity check" in capsys.readouterr().out
     assert main(["gerel", "--domain", "coffee", "--param", "tied", "--quiet"]) == 2
     assert "does not apply to coffee" in capsys.readouterr().err
     assert main(["gerel", "--param", "factored", "--size", "3", "--quiet"]) == 2

@@ -91,12 +91,14 @@ def summarise(cfg, study, responses, rows) -> dict:
             "spill": _ms([r.participant.spill for r in valid[robot]]),
             "wet_penalty": _ms([-r.participant.wet_weight for r in valid[robot]]),
             "coffee_weight": _ms([r.participant.coffee_weight for r in valid[robot]]),
+            "wet_per_coffee": _ms([-r.participant.wet_weight / r.participant.coffee_weight for r in valid[robot]]),
         }
         for robot in ROBOTS
     }
     learned, orderings, correlations = {}, {}, {}
     true_spill_order = truth["humanoid"]["spill"][0] > truth["mobile"]["spill"][0]
     true_wet_order = truth["humanoid"]["wet_penalty"][0] > truth["mobile"]["wet_penalty"][0]
+    true_ratio_order = truth["humanoid"]["wet_per_coffee"][0] > truth["mobile"]["wet_per_coffee"][0]
     for (method, param), rs in sorted(fits.items()):
         name = _fit_label(method, param)
         per = {}
@@ -112,11 +114,14 @@ def summarise(cfg, study, responses, rows) -> dict:
         learned[name] = per
         spill_higher = per["humanoid"]["spill"][0] > per["mobile"]["spill"][0]
         wet_higher = per["humanoid"]["wet_penalty"][0] > per["mobile"]["wet_penalty"][0]
+        ratio_higher = per["humanoid"]["wet_per_coffee"][0] > per["mobile"]["wet_per_coffee"][0]
         orderings[name] = {
             "spill_humanoid_gt_mobile": bool(spill_higher),
             "wet_penalty_humanoid_gt_mobile": bool(wet_higher),
+            "wet_per_coffee_humanoid_gt_mobile": bool(ratio_higher),
             "spill_order_matches_truth": bool(spill_higher == true_spill_order) if method == "gerel" else None,
             "wet_order_matches_truth": bool(wet_higher == true_wet_order),
+            "wet_per_coffee_order_matches_truth": bool(ratio_higher == true_ratio_order),
         }
         correlations[name] = {
             "wet_weight": correlation([r["wet_weight_learned"] for r in rs], [r["wet_weight_true"] for r in rs]),
@@ -177,11 +182,12 @@ def render_tables(s: dict) -> str:
         )
     lines.append("\nLearned per robot type (mean ± std over participants; truth = the participants' own values)\n")
     lines += [
-        "| fit | spill mobile | spill humanoid | wet penalty mobile | wet penalty humanoid | coffee w mobile | coffee w humanoid |",
-        "|---|---|---|---|---|---|---|",
+        "| fit | spill mobile | spill humanoid | wet penalty mobile | wet penalty humanoid "
+        "| coffee w mobile | coffee w humanoid | wet/coffee mobile | wet/coffee humanoid |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
 
-    def cells(per, keys=("spill", "wet_penalty", "coffee_weight")):
+    def cells(per, keys=("spill", "wet_penalty", "coffee_weight", "wet_per_coffee")):
         out = []
         for k in keys:
             for robot in ROBOTS:
@@ -194,18 +200,19 @@ def render_tables(s: dict) -> str:
         lines.append(f"| {name} | {cells(per)} |")
     lines.append("\nOrderings (humanoid > mobile?) and correlation with the participants' true values\n")
     lines += [
-        "| fit | spill h > m | wet penalty h > m | wet order right | r(spill) | r(wet weight) |",
-        "|---|---|---|---|---|---|",
+        "| fit | spill h > m | wet penalty h > m | as truth | wet/coffee h > m | as truth | r(spill) | r(wet weight) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
-    truth_spill = s["truth"]["humanoid"]["spill"][0] > s["truth"]["mobile"]["spill"][0]
-    truth_wet = s["truth"]["humanoid"]["wet_penalty"][0] > s["truth"]["mobile"]["wet_penalty"][0]
-    lines.append(f"| truth | {truth_spill} | {truth_wet} | – | – | – |")
+    t = s["truth"]
+    truth = [t["humanoid"][k][0] > t["mobile"][k][0] for k in ("spill", "wet_penalty", "wet_per_coffee")]
+    lines.append(f"| truth | {truth[0]} | {truth[1]} | – | {truth[2]} | – | – | – |")
     for name, o in s["orderings"].items():
         c = s["correlations"][name]
         r_spill = _f(c["spill"]["pearson"]) if "spill" in c else "–"
         lines.append(
             f"| {name} | {o['spill_humanoid_gt_mobile'] if 'GeReL⁻' not in name else '(truth)'} "
             f"| {o['wet_penalty_humanoid_gt_mobile']} | {o['wet_order_matches_truth']} "
+            f"| {o['wet_per_coffee_humanoid_gt_mobile']} | {o['wet_per_coffee_order_matches_truth']} "
             f"| {r_spill} | {_f(c['wet_weight']['pearson'])} |"
         )
     lines.append("\nRecruitment\n")
@@ -241,6 +248,7 @@ def write_outputs(cfg, out: Path, study, responses, records) -> dict:
         robot: {
             "coffee": [p.coffee_weight for p in ps],
             "wet": [p.wet_weight for p in ps],
+            "ratio": [-p.wet_weight / p.coffee_weight for p in ps],
             "spill": [p.spill for p in ps],
         }
         for robot, ps in valid.items()

@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib import patches
 
-from ..envs.coffee import ACTIONS, GO, IN_CAFE, ROBOT_COFFEE, VARIABLES, WET, bits
+from ..envs.coffee import ACTIONS, GO, IN_CAFE, ROBOT_COFFEE, ROBOTS, VARIABLES, WET, bits
 
 _BLUE, _BROWN, _GREY = "#3a78c2", "#7a4a21", "#555555"
 
@@ -87,28 +87,35 @@ def save_demo_strip(path: Path, states, actions, robot: str, title: str = "") ->
 
 
 def save_learned_values(path: Path, groups: dict[str, dict[str, list[dict]]], truth: dict[str, dict[str, list]]) -> None:
-    """Fig. 12: learned coffee weight, wetness penalty and spill probability per method and robot type.
+    """Fig. 12: learned coffee weight, wetness penalty, their ratio and spill probability per method and robot.
 
     Args:
         groups: ``{method label: {robot: [row, ...]}}`` with keys ``coffee_weight_learned``,
             ``wet_weight_learned``, ``spill_learned``.
-        truth: ``{robot: {"coffee": [...], "wet": [...], "spill": [...]}}`` the
+        truth: ``{robot: {"coffee": [...], "wet": [...], "ratio": [...], "spill": [...]}}`` the
             participants' true values (drawn as the first group).
     """
     panels = (
         ("coffee", "coffee_weight_learned", 1.0, "weight of 'user has coffee'"),
         ("wet", "wet_weight_learned", -1.0, "wetness penalty (−weight of 'robot wet')"),
+        ("ratio", "wet_per_coffee", 1.0, "wetness penalty / coffee weight"),
         ("spill", "spill_learned", 1.0, "believed spill probability"),
     )
-    robots = sorted({r for g in groups.values() for r in g})
+    present = {r for g in groups.values() for r in g}
+    robots = [r for r in ROBOTS if r in present]
     labels = ["truth"] + list(groups)
     colours = {"mobile": "#4c72b0", "humanoid": "#dd8452"}
-    fig, axes = plt.subplots(1, 3, figsize=(4.4 * 3, 3.4))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.4))
     width = 0.8 / max(len(robots), 1)
     for ax, (tkey, rkey, sign, ylabel) in zip(axes, panels):
         for i, label in enumerate(labels):
             for j, robot in enumerate(robots):
-                vals = truth.get(robot, {}).get(tkey, []) if label == "truth" else [r[rkey] for r in groups[label][robot]]
+                if label == "truth":
+                    vals = truth.get(robot, {}).get(tkey, [])
+                elif rkey == "wet_per_coffee":
+                    vals = [-r["wet_weight_learned"] / r["coffee_weight_learned"] for r in groups[label][robot]]
+                else:
+                    vals = [r[rkey] for r in groups[label][robot]]
                 vals = sign * np.asarray([v for v in vals if np.isfinite(v)], float)
                 if not len(vals):
                     continue
