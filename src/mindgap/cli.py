@@ -7,6 +7,7 @@ mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
+mindgap study serve|check|links|export|examples …  (user studies in the browser; see mindgap.commands.study)
 """
 
 from __future__ import annotations
@@ -36,10 +37,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
-    from .commands import learn, worlds
+    from .commands import learn, study, worlds
 
     worlds.add_parser(sub)
     learn.add_parsers(sub)
+    study.add_parser(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
     g.add_argument("--domain", default="grid7", help=f"domain: {', '.join(DOMAINS)}")
@@ -96,6 +98,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import worlds
 
             return worlds.run(args)
+        if args.command == "study":
+            from .commands import study
+
+            return study.run(args)
         if args.command in ("sac", "pebble", "drlhp"):
             from .commands import learn
 

@@ -1,0 +1,134 @@
+"""Pictures of study items, drawn by mindgap's own plotting and cached on disk.
+
+* coffee demonstrations: :func:`mindgap.plotting.coffee.save_demo_strip` (Fig. 11), in the
+  participant's robot condition;
+* grid7 demonstrations: the grid with the demonstrated path (drawn here: the grid
+  heatmaps of :mod:`mindgap.plotting.heatmaps` show values, not paths);
+* terrain segments: the map of :mod:`mindgap.plotting.terrain` with the segment's path
+  and, as small grey arrows, what the agent pushed for at each step (so an expectation
+  question can be judged), or an animated GIF (``animation: true`` in ``items``).
+
+Matplotlib is not thread-safe, so drawing holds one lock; each picture is drawn once
+and written through a rename, then served from the cache folder.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+
+_LOCK = threading.Lock()
+PART_COLOURS = {"a": "#d62728", "b": "#1f77b4"}
+
+
+class Renderer:
+    """Draws items of one study into ``cache`` (``<cache>/<condition>/<item>-<part>.<ext>``)."""
+
+    def __init__(self, study, cache: Path):
+        self.study = study
+        self.cache = Path(cache)
+        self._world = None
+
+    @property
+    def world(self):
+        if self._world is None:
+            from .items import load_study_world
+
+            self._world = load_study_world(self.study)
+        return self._world
+
+    def ext(self) -> str:
+        return "gif" if self.study.items.get("animation") else "png"
+
+    def path(self, item: dict, part: str, condition: str) -> Path:
+        """The picture of ``part`` (``demo``, ``a`` or ``b``) of ``item``, drawn on first use."""
+        out = self.cache / (condition or "all") / f"{item['id']}-{part}.{self.ext() if part != 'demo' else 'png'}"
+        if out.exists():
+            return out
+        with _LOCK:
+            if not out.exists():
+                out.parent.mkdir(parents=True, exist_ok=True)
+                self._draw(item, part, condition, out)
+        return out
+
+    def _draw(self, item: dict, part: str, condition: str, out: Path) -> None:
+        domain = self.study.domain["name"]
+        tmp = out.with_name(out.stem + ".part" + out.suffix)
+        d = item["data"]
+        if domain == "coffee":
+            from ..plotting.coffee import save_demo_strip
+
+            save_demo_strip(tmp, d["states"], d["actions"], condition or "mobile", "")
+        elif domain == "grid7":
+            save_grid_demo(tmp, d["states"], d["size"])
+        else:
+            seg = d[part]
+            if out.suffix == ".gif":
+                from ..plotting.terrain import save_rollout_gif
+
+                save_rollout_gif(tmp, self.world.params, segment_positions(self.world.params, seg), fps=4)
+            else:
+                save_segment(tmp, self.world.params, seg, PART_COLOURS[part], part.upper())
+        tmp.replace(out)
+
+
+def segment_positions(params, seg: dict) -> np.ndarray:
+    """Positions [n + 1, 2] (cells) visited by a segment: its start, then each real step's arrival."""
+    from .items import world_pos
+
+    mask = np.asarray(seg["mask"], bool)
+    obs, nxt = np.asarray(seg["obs"]), np.asarray(seg["next_obs"])
+    return world_pos(params, np.concatenate([obs[:1], nxt[mask]]))
+
+
+def save_segment(path: Path, params, seg: dict, colour: str, label: str) -> None:
+    """One terrain segment on the map: path, start ring, end dot, and the pushes as grey arrows."""
+    import matplotlib.pyplot as plt
+
+    from ..plotting.terrain import draw_world
+
+    pos = segment_positions(params, seg)
+    act = np.asarray(seg["act"])[np.asarray(seg["mask"], bool)]
+    h, w = np.asarray(params.grid).shape
+    fig, ax = plt.subplots(figsize=(0.42 * w + 0.4, 0.42 * h + 0.5))
+    draw_world(ax, params, starts=False)
+    ax.quiver(
+        pos[:-1, 0],
+        pos[:-1, 1],
+        act[:, 0],
+        act[:, 1],
+        color="#555555",
+        angles="xy",
+        scale_units="xy",
+        scale=2.5,
+        width=0.004,
+    )
+    ax.plot(pos[:, 0], pos[:, 1], "-", color=colour, lw=2)
+    ax.plot(pos[0, 0], pos[0, 1], "o", mfc="none", mec=colour, ms=9, mew=2)
+    ax.plot(pos[-1, 0], pos[-1, 1], "o", color=colour, ms=6)
+    ax.set_title(f"behaviour {label}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100, format="png")
+    plt.close(fig)
+
+
+def save_grid_demo(path: Path, states, size: int) -> None:
+    """A grid7 demonstration: the grid, the path through the cell centres, start ring and end dot."""
+    import matplotlib.pyplot as plt
+
+    rows, cols = np.divmod(np.asarray(states), size)
+    fig, ax = plt.subplots(figsize=(3.2, 3.2))
+    ax.set_xlim(-0.5, size - 0.5)
+    ax.set_ylim(size - 0.5, -0.5)
+    ax.set_xticks(np.arange(-0.5, size), minor=True)
+    ax.set_yticks(np.arange(-0.5, size), minor=True)
+    ax.grid(which="minor", color="#bbbbbb")
+    ax.tick_params(which="both", length=0, labelbottom=False, labelleft=False)
+    ax.plot(cols, rows, "-", color="#d62728", lw=2, alpha=0.8)
+    ax.plot(cols[0], rows[0], "o", mfc="none", mec="#d62728", ms=12, mew=2)
+    ax.plot(cols[-1], rows[-1], "o", color="#d62728", ms=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100, format="png")
+    plt.close(fig)

@@ -1,0 +1,165 @@
+"""Shared pieces of the study tests: study files, a real server process, a scripted participant."""
+
+from __future__ import annotations
+
+import re
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import yaml
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "src" / "mindgap" / "study" / "examples"
+ADMIN = "admin-token-for-tests"
+
+
+def study_file(tmp: Path, example: str, **changes) -> Path:
+    """An example study file with some keys changed (e.g. participants, min_seconds)."""
+    raw = yaml.safe_load((EXAMPLES / f"{example}.yaml").read_text())
+    raw.update(changes)
+    path = tmp / f"{example}.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return path
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Server:
+    """``mindgap study serve`` in a subprocess (a real uvicorn server)."""
+
+    def __init__(self, config: Path, db: Path, port: int | None = None, extra: tuple[str, ...] = ()):
+        self.config, self.db, self.port = config, db, port or free_port()
+        self.extra = extra
+        self.proc: subprocess.Popen | None = None
+        self.log = db.with_suffix(".log")
+
+    @property
+    def base(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def start(self, timeout: float = 60.0) -> Server:
+        cmd = [
+            sys.executable,
+            "-m",
+            "mindgap.cli",
+            "study",
+            "serve",
+            "--config",
+            str(self.config),
+            "--db",
+            str(self.db),
+        ]
+        cmd += ["--port", str(self.port), "--admin-token", ADMIN, "--quiet", *self.extra]
+        with self.log.open("ab") as log:
+            self.proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise RuntimeError(f"server exited with {self.proc.returncode}:\n{self.log.read_text()}")
+            try:
+                if httpx.get(self.base + "/healthz", timeout=1.0).status_code == 200:
+                    return self
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.1)
+        self.stop()
+        raise RuntimeError(f"server did not come up in {timeout} s:\n{self.log.read_text()}")
+
+    def kill(self) -> None:
+        """SIGKILL: no shutdown handlers run."""
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait(10)
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(10)
+
+
+def hidden(html: str, name: str) -> str:
+    m = re.search(rf'name="{name}" value="([^"]*)"', html)
+    if m is None:
+        raise AssertionError(f"no hidden field {name!r} in page:\n{html[:2000]}")
+    return m.group(1)
+
+
+def form_action(html: str) -> str:
+    m = re.search(r'<form method="post" action="/p/[^/"]+/(\w+)"', html)
+    return m.group(1) if m else ""
+
+
+class Participant:
+    """A scripted participant: answers whatever page the server shows next.
+
+    ``rate(item_id)`` gives each rating; ``acked`` collects ``{item_id: (rating, outcome)}``
+    for every answer the server acknowledged (a 303 after the answer was stored).
+    """
+
+    def __init__(self, http, token: str, rate, double_submit: bool = False):
+        self.http, self.token, self.rate, self.double = http, token, rate, double_submit
+        self.acked: dict[str, tuple[float, str]] = {}
+        self.code = ""
+        self.requests = 0
+
+    def get(self) -> str:
+        self.requests += 1
+        r = self.http.get(f"/p/{self.token}")
+        assert r.status_code == 200, (r.status_code, r.text[:500])
+        return r.text
+
+    def post(self, what: str, data: dict):
+        self.requests += 1
+        return self.http.post(f"/p/{self.token}/{what}", data=data, follow_redirects=False)
+
+    def step(self) -> bool:
+        """Answer the current page; False once the completion code is shown."""
+        html = self.get()
+        action = form_action(html)
+        if not action:
+            m = re.search(r'id="code">([0-9A-F]+)<', html)
+            assert m, html[:1000]
+            self.code = m.group(1)
+            return False
+        csrf = hidden(html, "csrf")
+        if action == "consent":
+            r = self.post("consent", {"csrf": csrf, "agree": "yes"})
+        elif action == "instructions":
+            r = self.post("instructions", {"csrf": csrf})
+        elif action == "questionnaire":
+            names = sorted(set(re.findall(r'type="radio" name="(\w+)" value="1"', html)))
+            r = self.post("questionnaire", {"csrf": csrf, **{n: "3" for n in names}})
+        else:
+            item = hidden(html, "item_id")
+            data = {"csrf": csrf, "item_id": item, "submission_id": hidden(html, "submission_id")}
+            if 'name="rating"' in html:
+                rating = self.rate(item)
+                data["rating"] = str(rating)
+            else:
+                rating = self.rate(item)
+                data["choice"] = rating
+            r = self.post("answer", data)
+            if self.double:  # the same form sent again (a double click or a retried request)
+                r2 = self.post("answer", data)
+                assert r2.status_code == 303 and r2.headers["x-answer"] in ("duplicate", "stored"), r2.text[:500]
+            assert r.status_code == 303, (r.status_code, r.text[:500])
+            self.acked[item] = (rating, r.headers["x-answer"])
+        assert r.status_code == 303, (action, r.status_code, r.text[:500])
+        return True
+
+    def run(self, max_steps: int = 100) -> None:
+        for _ in range(max_steps):
+            if not self.step():
+                return
+        raise AssertionError("study did not end")

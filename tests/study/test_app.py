@@ -1,0 +1,207 @@
+"""The participant flow, the dashboard and bad input, in process (starlette's TestClient)."""
+
+import dataclasses
+import json
+
+import pytest
+from fastapi.testclient import TestClient
+from study_helpers import ADMIN, Participant, hidden, study_file
+
+from mindgap.study.app import create_app
+from mindgap.study.server import open_study
+
+
+def _app(tmp_path, example="coffee-rating", **changes):
+    changes.setdefault("participants", 3)
+    study, store, renderer = open_study(study_file(tmp_path, example, **changes), tmp_path / "s.sqlite", ADMIN)
+    return study, store, TestClient(create_app(study, store, renderer))
+
+
+@pytest.fixture
+def coffee(tmp_path):
+    return _app(tmp_path, min_seconds=0)
+
+
+def _to_items(client, token):
+    """Consent, instructions and questionnaire done; returns the first item page."""
+    p = Participant(client, token, rate=lambda item: 5)
+    while 'name="item_id"' not in (page := p.get()):
+        p.step()
+    return page
+
+
+def _rate(item):
+    return 0 if item == "sanity-random" else 3 + len(item) % 7
+
+
+def test_a_participant_completes_the_study_and_progress_survives_reloads(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    p = Participant(client, token, rate=_rate)
+    for _ in range(5):  # consent, instructions, questionnaire, two items
+        p.step()
+    page = p.get()
+    again = hidden(p.get(), "item_id")
+    assert again == hidden(page, "item_id")  # a reload shows the same item, not the first one
+    order = json.loads(store.participants()[0]["item_order"])
+    assert again == order[2]
+    p.run()
+    assert p.code == store.participants()[0]["completion_code"]
+    assert sorted(p.acked) == sorted(order)
+    rows = {a["item_id"]: a["value"] for a in store.answers()}
+    assert rows == {item: float(_rate(item)) for item in order}
+    assert all(a["seconds"] is not None and a["seconds"] >= 0 for a in store.answers())
+    assert {q["question"]: q["value"] for q in store.questionnaire()} == {"q1": 3, "q2": 3}
+
+
+def test_pictures_are_drawn_by_mindgap_and_served_only_to_their_participant(coffee):
+    study, store, client = coffee
+    a, b = (p["token"] for p in store.participants()[:2])
+    page = _to_items(client, a)
+    item = hidden(page, "item_id")
+    img = client.get(f"/p/{a}/media/{item}/demo")
+    assert img.status_code == 200 and img.content[:8] == b"\x89PNG\r\n\x1a\n"
+    assert client.get(f"/p/{a}/media/{item}/a").status_code == 404  # a demo has no picture "a"
+    assert client.get(f"/p/{a}/media/no-such-item/demo").status_code == 404
+    assert client.get(f"/p/not-a-token/media/{item}/demo").status_code == 404
+
+
+def test_a_second_participant_cannot_answer_for_the_first(coffee):
+    study, store, client = coffee
+    a, b = (p["token"] for p in store.participants()[:2])
+    page_a, page_b = _to_items(client, a), _to_items(client, b)
+    form = {"item_id": hidden(page_a, "item_id"), "submission_id": "abcdefgh1234", "rating": "7"}
+    # B's form token on A's page: refused
+    r = client.post(f"/p/{a}/answer", data={**form, "csrf": hidden(page_b, "csrf")}, follow_redirects=False)
+    assert r.status_code == 403
+    # no form token at all: refused
+    assert client.post(f"/p/{a}/answer", data=form, follow_redirects=False).status_code == 403
+    # a cross-site post, even with the right token: refused
+    r = client.post(
+        f"/p/{a}/answer", data={**form, "csrf": hidden(page_a, "csrf")}, headers={"Origin": "http://evil.example"}
+    )
+    assert r.status_code == 403
+    assert store.answers() == []
+
+
+def test_bad_answers_get_clear_errors_and_are_not_stored(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    base = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "sub-000000001"}
+    for bad in ("11", "-1", "nan", "seven", ""):
+        r = client.post(f"/p/{token}/answer", data={**base, "rating": bad})
+        assert r.status_code == 422 and "from 0 to 10" in r.text, bad
+    r = client.post(f"/p/{token}/answer", data={**base, "item_id": "no-such-item", "rating": "5"})
+    assert r.status_code == 404 and "no-such-item" in r.text
+    order = json.loads(store.participants()[0]["item_order"])
+    r = client.post(f"/p/{token}/answer", data={**base, "item_id": order[-1], "rating": "5"})
+    assert r.status_code == 409  # not the item shown now
+    r = client.post(f"/p/{token}/answer", data={**base, "submission_id": "x", "rating": "5"})
+    assert r.status_code == 400
+    assert client.get("/p/unknown-token").status_code == 404
+    assert store.answers() == []
+
+
+def test_a_double_click_records_one_answer(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "double-click-1"}
+    outcomes = [
+        client.post(f"/p/{token}/answer", data={**form, "rating": "6"}, follow_redirects=False) for _ in range(3)
+    ]
+    assert [r.status_code for r in outcomes] == [303, 303, 303]
+    assert [r.headers["x-answer"] for r in outcomes] == ["stored", "duplicate", "duplicate"]
+    # another tab with the same item and another submission id: the first answer stands
+    r = client.post(
+        f"/p/{token}/answer", data={**form, "submission_id": "other-tab-22", "rating": "1"}, follow_redirects=False
+    )
+    assert r.headers["x-answer"] == "answered"
+    assert [(a["item_id"], a["value"]) for a in store.answers()] == [(form["item_id"], 6.0)]
+
+
+def test_answers_faster_than_the_minimum_time_are_refused(tmp_path):
+    study, store, client = _app(tmp_path, min_seconds=30)
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    assert 'data-wait="30' in page or 'data-wait="29' in page
+    form = {
+        "csrf": hidden(page, "csrf"),
+        "item_id": hidden(page, "item_id"),
+        "submission_id": "too-fast-001",
+        "rating": "4",
+    }
+    r = client.post(f"/p/{token}/answer", data=form)
+    assert r.status_code == 422 and "at least 30 seconds" in r.text
+    assert store.answers() == []
+
+
+def test_dashboard_and_exports_need_the_admin_token(coffee):
+    study, store, client = coffee
+    for url in ("/admin", "/admin/api/status", "/admin/export/ratings.csv", "/admin/export/answers.json"):
+        assert client.get(url).status_code == 401, url
+        assert client.get(url, headers={"Authorization": "Bearer wrong"}).status_code == 401, url
+    assert client.get("/admin", headers={"Authorization": f"Bearer {ADMIN}"}).status_code == 200
+    r = client.get(f"/admin?token={ADMIN}", follow_redirects=False)  # sets a cookie and drops the token from the URL
+    assert r.status_code == 303 and "samesite=strict" in r.headers["set-cookie"].lower()
+    assert client.get("/admin").status_code == 200
+    # adding participants is a form post: needs the dashboard's form token
+    assert client.post("/admin/participants", data={"count": "2"}).status_code == 403
+    page = client.get("/admin").text
+    r = client.post("/admin/participants", data={"count": "2", "csrf": hidden(page, "csrf")}, follow_redirects=False)
+    assert r.status_code == 303 and len(store.participants()) == 5
+    r = client.post("/admin/participants", data={"count": "0", "csrf": hidden(page, "csrf")})
+    assert r.status_code == 422
+
+
+def test_dashboard_shows_progress_and_sanity_failures(coffee):
+    study, store, client = coffee
+    good, bad = (p["token"] for p in store.participants()[:2])
+    Participant(client, good, rate=_rate).run()
+    Participant(client, bad, rate=lambda item: 9 if item == "sanity-random" else 2).run()
+    status = client.get("/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
+    people = {p["label"]: p for p in status["people"]}
+    assert people["p-001"]["failed"] == [] and people["p-002"]["failed"] == ["sanity-random"]
+    assert people["p-001"]["stage"] == people["p-002"]["stage"] == "done"
+    assert people["p-003"]["stage"] == "consent" and people["p-003"]["answered"] == 0
+    assert status["n_answers"] == 18 and status["n_failed"] == 1
+    sanity_row = next(i for i in status["items"] if i["id"] == "sanity-random")
+    assert sanity_row["answers"] == 2 and sanity_row["failures"] == 1
+    html = client.get("/admin", headers={"Authorization": f"Bearer {ADMIN}"}).text
+    assert "p-002" in html and "sanity-random" in html and people["p-001"]["code"] in html
+
+
+def test_declining_consent_ends_the_study(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = client.get(f"/p/{token}").text
+    r = client.post(f"/p/{token}/consent", data={"csrf": hidden(page, "csrf"), "agree": "no"})
+    assert r.status_code == 200 and "chose not to take part" in r.text
+    assert "chose not to take part" in client.get(f"/p/{token}").text
+
+
+def test_pages_carry_security_headers(coffee):
+    study, store, client = coffee
+    r = client.get(f"/p/{store.participants()[0]['token']}")
+    assert r.headers["referrer-policy"] == "no-referrer"  # the personal link must not leak to other sites
+    assert "frame-ancestors 'none'" in r.headers["content-security-policy"]
+    assert r.headers["cache-control"] == "no-store"
+
+
+def test_comparison_items_show_two_pictures_and_take_a_choice(tmp_path):
+    study, store, client = _app(tmp_path, "terrain-preference", min_seconds=0, questionnaire=[])
+    store_items = {it["id"]: it for it in store.items()}
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    item = hidden(page, "item_id")
+    assert store_items[item]["kind"] == "pair"
+    for part in ("a", "b"):
+        img = client.get(f"/p/{token}/media/{item}/{part}")
+        assert img.status_code == 200 and img.content[:4] == b"\x89PNG"
+    form = {"csrf": hidden(page, "csrf"), "item_id": item, "submission_id": "choice-0001"}
+    assert client.post(f"/p/{token}/answer", data={**form, "choice": "c"}).status_code == 422
+    r = client.post(f"/p/{token}/answer", data={**form, "choice": "equal"}, follow_redirects=False)
+    assert r.status_code == 303
+    assert [(a["choice"], a["value"]) for a in store.answers()] == [("equal", 0.5)]
+    assert dataclasses.asdict(study)["protocol"] == "preference"
