@@ -35,6 +35,7 @@ from .._io import atomic_write
 from ..checkpoint import load_pytree, save_pytree
 from ..feedback.queries import SAMPLERS, select_queries
 from ..feedback.replay import relabel
+from ..feedback.segments import Segments
 from ..models.reward_ensemble import (
     PrefData,
     RewardConfig,
@@ -45,6 +46,7 @@ from ..models.reward_ensemble import (
     reward_init,
     train_reward,
 )
+from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
 from .sac import SACConfig, sac_init
 from .sac_loop import LoopState, evaluate, loop_init, run_chunk
@@ -151,27 +153,67 @@ def _init(keys, world_params, cfg: PbRLConfig) -> Carry:
     return jax.vmap(one)(keys)
 
 
+def _select_one(c: Carry, cfg: PbRLConfig):
+    """First half of one seed's feedback round: the queries to show (and the keys for the rest)."""
+    key, k_q, k_t, k_r = jax.random.split(c.key, 4)
+    seg_a, seg_b = select_queries(
+        k_q, c.loop.replay, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
+    )
+    return c._replace(key=key), seg_a, seg_b, k_t, k_r
+
+
+def _learn_one(c: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
+    """Second half: keep the answers within the budget, fit the ensemble, relabel the buffer."""
+    left = cfg.queries - c.queries
+    answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
+    prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
+    rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
+    replay = relabel(c.loop.replay, ensemble_reward, rew.params)
+    shown = jnp.minimum(cfg.per_round, left)
+    c = c._replace(loop=c.loop._replace(replay=replay), reward=rew, prefs=prefs, queries=c.queries + shown)
+    return c, (loss, acc)
+
+
 @partial(jax.jit, static_argnames=("cfg", "tcfg"))
 def _feedback(carry: Carry, world_params, belief_params, cfg: PbRLConfig, tcfg: TeacherConfig):
     """One feedback round of every seed: query, answer, fit the ensemble, relabel the buffer."""
 
     def one(c: Carry):
-        key, k_q, k_t, k_r = jax.random.split(c.key, 4)
-        left = cfg.queries - c.queries
-        seg_a, seg_b = select_queries(
-            k_q, c.loop.replay, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
-        )
+        c, seg_a, seg_b, k_t, k_r = _select_one(c, cfg)
         labels, answered = answer(k_t, seg_a, seg_b, world_params, belief_params, tcfg)
-        answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
-        prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
-        rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
-        replay = relabel(c.loop.replay, ensemble_reward, rew.params)
-        shown = jnp.minimum(cfg.per_round, left)
-        return c._replace(
-            loop=c.loop._replace(replay=replay), reward=rew, prefs=prefs, key=key, queries=c.queries + shown
-        ), (loss, acc)
+        return _learn_one(c, seg_a, seg_b, labels, answered, k_r, cfg)
 
     return jax.vmap(one)(carry)
+
+
+@partial(jax.jit, static_argnames=("cfg",))
+def _select(carry: Carry, cfg: PbRLConfig):
+    return jax.vmap(lambda c: _select_one(c, cfg))(carry)
+
+
+@partial(jax.jit, static_argnames=("cfg",))
+def _learn(carry: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
+    return jax.vmap(lambda *xs: _learn_one(*xs, cfg))(carry, seg_a, seg_b, labels, answered, k_r)
+
+
+def _feedback_host(carry: Carry, teacher: HostTeacher, cfg: PbRLConfig):
+    """A feedback round with a teacher outside jit (people): jitted selection, the call, jitted learning.
+
+    Only the queries the budget still allows are shown; every seed's are asked in one call.
+    """
+    carry, seg_a, seg_b, _, k_r = _select(carry, cfg)
+    seeds = carry.queries.shape[0]
+    ask = int(min(cfg.per_round, cfg.queries - int(carry.queries.min())))
+
+    def flat(seg):
+        return Segments(*(np.asarray(x)[:, :ask].reshape(seeds * ask, *x.shape[2:]) for x in seg))
+
+    got, ok = teacher(flat(seg_a), flat(seg_b))
+    labels = np.zeros((seeds, cfg.per_round), np.float32)
+    answered = np.zeros((seeds, cfg.per_round), bool)
+    labels[:, :ask] = np.asarray(got, np.float32).reshape(seeds, ask)
+    answered[:, :ask] = np.asarray(ok, bool).reshape(seeds, ask)
+    return _learn(carry, seg_a, seg_b, jnp.asarray(labels), jnp.asarray(answered), k_r, cfg)
 
 
 @partial(jax.jit, static_argnames=("cfg",))
@@ -223,7 +265,7 @@ def train(
     world,
     cfg: PbRLConfig,
     seeds: int = 1,
-    teacher: str = "true",
+    teacher: str | HostTeacher = "true",
     belief: str | None = None,
     out: Path | None = None,
     progress: bool = True,
@@ -235,22 +277,24 @@ def train(
         world: a :class:`~mindgap.envs.terrain.TerrainWorld`.
         teacher: ``"biased"`` — the person scores segments with r_H + log T_H under
             ``belief`` (default: the world's first); ``"true"`` — the ordinary B-Pref
-            teacher (r_H only).
+            teacher (r_H only); a :class:`~mindgap.teachers.host.HostTeacher` (e.g. people
+            through the study app) — asked outside jit each round.
 
     Returns:
         dict with ``curve`` (rows of seed, step, return, queries), ``final_returns``
         [seeds, episodes], ``paths`` (per seed, greedy rollouts) and ``config``.
     """
     cfg.check()
-    if teacher not in ("biased", "true"):
-        raise ValueError(f"teacher must be 'biased' or 'true', got {teacher!r}")
+    host = teacher if callable(teacher) else None
+    if host is None and teacher not in ("biased", "true"):
+        raise ValueError(f"teacher must be 'biased', 'true' or a host teacher, got {teacher!r}")
     if seeds < 1:
         raise ValueError("seeds must be at least 1")
     params = world.params
     belief_params = world.belief(belief) if teacher == "biased" else None
     tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher == "biased")
     meta = {"world": world.name, "source": world.source, "world_hash": _fingerprint(world), "seeds": seeds}
-    meta.update(teacher=teacher, belief=belief)
+    meta.update(teacher=teacher if host is None else host.name, belief=belief)
     meta["config"] = cfg.as_dict()
     carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
     step, rows = 0, []
@@ -284,7 +328,10 @@ def train(
         if cfg.method != "sac" and phase == "train":
             due = (step - first_feedback) % cfg.feedback_every == 0
             if due and int(carry.queries.min()) < cfg.queries:
-                carry, (loss, acc) = _feedback(carry, params, belief_params, cfg, tcfg)
+                if host is None:
+                    carry, (loss, acc) = _feedback(carry, params, belief_params, cfg, tcfg)
+                else:
+                    carry, (loss, acc) = _feedback_host(carry, host, cfg)
             if step == first_feedback and cfg.reset_critic:
                 carry = _reset_critic(carry, cfg)
         carry = _chunk(carry, params, cfg, phase)

@@ -60,7 +60,7 @@ class Renderer:
         if domain == "coffee":
             from ..plotting.coffee import save_demo_strip
 
-            save_demo_strip(tmp, d["states"], d["actions"], condition or "mobile", "")
+            save_demo_strip(tmp, d["states"], d["actions"], condition or "mobile", "What the robot did")
         elif domain == "grid7":
             save_grid_demo(tmp, d["states"], d["size"])
         else:

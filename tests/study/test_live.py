@@ -1,0 +1,166 @@
+"""Live mode: a training run asks people through the study store and waits for their answers."""
+
+import threading
+import time
+
+import jax
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from study_helpers import Participant, study_file
+
+from mindgap.algorithms.pbrl import method_config, train
+from mindgap.algorithms.sac import SACConfig
+from mindgap.envs.terrain import load_world, world_from_dict
+from mindgap.feedback.segments import Segments
+from mindgap.models.reward_ensemble import RewardConfig
+from mindgap.study.app import create_app
+from mindgap.study.items import random_segments, true_returns
+from mindgap.study.live import StudyTeacher
+from mindgap.study.server import open_study
+from mindgap.teachers.host import HostTeacher, SimulatedHostTeacher
+from mindgap.teachers.preference import TeacherConfig
+
+EASY = """name = "easy"
+horizon = 30
+layout = \"\"\"
+#########
+#S.....G#
+#.......#
+#########
+\"\"\"
+[rewards]
+goal = 10.0
+step = -1.0
+progress = 1.0
+"""
+TINY = dict(
+    total_steps=1500,
+    chunk=250,
+    eval_every=500,
+    eval_episodes=4,
+    feedback_every=250,
+    explore_steps=250,
+    queries=12,
+    per_round=6,
+    segment=5,
+    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
+    reward=RewardConfig(hidden=(8, 8), updates=10, batch_size=8),
+)
+
+
+def _live(tmp_path, world="nav1"):
+    config = study_file(
+        tmp_path, "terrain-live", participants=2, min_seconds=0, domain={"name": "terrain", "world": world}
+    )
+    study, store, renderer = open_study(config, tmp_path / "live.sqlite")
+    return store, TestClient(create_app(study, store, renderer))
+
+
+class People:
+    """Participants answering through the app in a thread, preferring the higher return under ``params``."""
+
+    def __init__(self, client, store, params):
+        self.stop = threading.Event()
+        self.answered = 0
+        items = {}
+
+        def choose(item_id):
+            q = store.live_query(int(item_id.split("-")[1]))
+            import json
+
+            data = json.loads(q["data"])
+            seg = {s: {k: np.asarray([data[s][k]]) for k in ("obs", "act", "next_obs", "mask")} for s in "ab"}
+            d = float(true_returns(params, seg["a"])[0] - true_returns(params, seg["b"])[0])
+            items[item_id] = d
+            return "equal" if d == 0 else ("a" if d > 0 else "b")
+
+        self.people = [Participant(client, p["token"], choose) for p in store.participants()]
+        self.thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self):
+        while not self.stop.is_set():
+            for p in self.people:
+                html = p.get()
+                if 'action="/p/' + p.token + '/finish"' in html:
+                    continue  # waiting page: nothing to answer yet
+                p.step()
+            time.sleep(0.02)
+
+    def __enter__(self):
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        self.thread.join(10)
+
+
+def _pairs(params, k, seed=0):
+    s = random_segments(jax.random.key(seed), params, 2 * k, 8)
+    return (Segments(*(s[f][:k] for f in Segments._fields)), Segments(*(s[f][k:] for f in Segments._fields)))
+
+
+def test_the_study_teacher_returns_what_people_answered(tmp_path):
+    store, client = _live(tmp_path)
+    world = load_world("nav1")
+    teacher = StudyTeacher(store.path, world, timeout=60, poll=0.05, progress=False)
+    assert isinstance(teacher, HostTeacher)
+    seg_a, seg_b = _pairs(world.params, 5)
+    with People(client, store, world.params):
+        labels, answered = teacher(seg_a, seg_b)
+    a = {k: np.asarray(getattr(seg_a, k)) for k in Segments._fields}
+    b = {k: np.asarray(getattr(seg_b, k)) for k in Segments._fields}
+    d = true_returns(world.params, a) - true_returns(world.params, b)
+    assert answered.all()
+    assert np.array_equal(labels, np.where(d == 0, 0.5, (d > 0).astype(np.float32)))
+    assert store.live_counts() == {"open": 0, "answered": 5, "expired": 0}
+
+
+def test_unanswered_queries_are_withdrawn_after_the_timeout(tmp_path):
+    store, client = _live(tmp_path)
+    world = load_world("nav1")
+    teacher = StudyTeacher(store.path, world, timeout=0.3, poll=0.05, progress=False)
+    pairs = _pairs(world.params, 3)
+    start = time.monotonic()
+    labels, answered = teacher(*pairs)
+    assert 0.3 <= time.monotonic() - start < 5
+    assert not answered.any()
+    assert store.live_counts() == {"open": 0, "answered": 0, "expired": 3}
+    token = store.participants()[0]["token"]
+    p = Participant(client, token, lambda i: "a")
+    p.step(), p.step()  # consent, instructions
+    assert "Waiting for the next question" in p.get()  # nothing left to answer
+
+
+def test_a_study_for_another_world_is_refused(tmp_path):
+    store, _ = _live(tmp_path)
+    with pytest.raises(ValueError, match="shows world 'nav1', the run trains on 'd1'"):
+        StudyTeacher(store.path, load_world("d1"))
+
+
+@pytest.mark.slow
+def test_pebble_learns_from_people_answering_in_the_study_app(tmp_path):
+    (tmp_path / "easy.toml").write_text(EASY)
+    world = world_from_dict(__import__("tomllib").loads(EASY))
+    store, client = _live(tmp_path, world=str(tmp_path / "easy.toml"))
+    teacher = StudyTeacher(store.path, world, timeout=60, poll=0.05, progress=False)
+    cfg = method_config("pebble", **TINY)
+    with People(client, store, world.params):
+        res = train(world, cfg, seeds=2, teacher=teacher, progress=False)
+    assert len(teacher.batches) == 2  # two rounds of 6 queries for each of 2 seeds
+    assert store.live_counts() == {"open": 0, "answered": 24, "expired": 0}
+    assert int(np.asarray(res["carry"].prefs.count).sum()) == 24
+    assert [int(q) for _, _, _, q in res["curve"][-2:]] == [12, 12]
+
+
+@pytest.mark.slow
+def test_the_host_path_gives_the_jitted_path_s_results(tmp_path):
+    """With a deterministic simulated person, asking outside jit changes nothing."""
+    world = world_from_dict(__import__("tomllib").loads(EASY))
+    cfg = method_config("pebble", **{**TINY, "teacher": TeacherConfig()})
+    jitted = train(world, cfg, seeds=2, teacher="true", progress=False)
+    host = SimulatedHostTeacher(world.params, None, TeacherConfig(use_belief=False), key=jax.random.key(0))
+    hosted = train(world, cfg, seeds=2, teacher=host, progress=False)
+    assert host.calls == 2
+    np.testing.assert_allclose(np.asarray(hosted["curve"]), np.asarray(jitted["curve"]), rtol=1e-5, atol=1e-5)
