@@ -3,5 +3,19 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+# The study app's browser test drives the system's Chromium (headless), installed from the
+# system's packages when missing; Playwright never downloads a browser. Without apt-get the
+# test is skipped and says why.
+if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
+  if command -v apt-get >/dev/null 2>&1; then
+    sudo=""
+    if [[ "$(id -u)" != 0 ]] && command -v sudo >/dev/null 2>&1; then sudo="sudo -n"; fi
+    $sudo apt-get install -y -qq chromium >/dev/null 2>&1 \
+      || { $sudo apt-get update -qq && $sudo apt-get install -y -qq chromium >/dev/null; } \
+      || echo "scripts/test.sh: could not install chromium; the browser test will be skipped" >&2
+  else
+    echo "scripts/test.sh: no apt-get to install chromium; the browser test will be skipped" >&2
+  fi
+fi
 .venv/bin/ruff check src tests benchmarks
 exec .venv/bin/python -m pytest "$@"
