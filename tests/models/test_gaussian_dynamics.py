@@ -1,0 +1,71 @@
+"""The agent's Gaussian dynamics model f_ψ: head, density, fitting with a validation split."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy import stats
+
+from mindgap.models.gaussian_dynamics import (
+    DynamicsConfig,
+    Norm,
+    dynamics_log_prob,
+    fit_norm,
+    gaussian_head,
+    log_density,
+    predict,
+    train_dynamics,
+)
+
+
+def test_head_and_density_by_hand():
+    norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.array([0.1, -0.2]), jnp.array([0.5, 2.0]))
+    obs = jnp.array([0.3, 0.4])
+    raw = jnp.array([1.0, -1.0, 0.0, 2.0])
+    mean, std = gaussian_head(raw, norm, obs, min_std=0.01)
+    np.testing.assert_allclose(mean, [0.3 + 0.1 + 0.5, 0.4 - 0.2 - 2.0], rtol=1e-6)
+    np.testing.assert_allclose(std, [0.5 * (0.01 + np.log(2)), 2.0 * (0.01 + np.log1p(np.exp(2)))], rtol=1e-6)
+    nxt = jnp.array([1.0, -1.0])
+    expect = stats.norm.logpdf(np.asarray(nxt), np.asarray(mean), np.asarray(std)).sum()
+    np.testing.assert_allclose(float(log_density(mean, std, nxt)), expect, rtol=1e-5)
+
+
+def _heteroscedastic(key, n):
+    """s' = s + 0.1 a + ε with ε's scale 0.01 where x < 0 and 0.05 where x ≥ 0."""
+    k_s, k_a, k_e = jax.random.split(key, 3)
+    obs = jax.random.uniform(k_s, (n, 2), minval=-1, maxval=1)
+    act = jax.random.uniform(k_a, (n, 2), minval=-1, maxval=1)
+    scale = jnp.where(obs[:, :1] < 0, 0.01, 0.05)
+    return obs, act, obs + 0.1 * act + scale * jax.random.normal(k_e, (n, 2))
+
+
+def test_fit_learns_mean_and_noise_and_ignores_invalid_rows(key):
+    obs, act, nxt = _heteroscedastic(key, 3000)
+    valid = jnp.arange(3000) < 2500
+    nxt = jnp.where(valid[:, None], nxt, 1e3)  # garbage in the unused rows must not matter
+    cfg = DynamicsConfig(hidden=(32, 32), max_epochs=30, patience=4, lr=3e-3)
+    model, info = jax.jit(train_dynamics, static_argnames="cfg")(jax.random.fold_in(key, 1), obs, act, nxt, valid, cfg)
+    probe = jnp.array([[-0.5, 0.0], [0.5, 0.0]])
+    a = jnp.array([[1.0, -1.0], [1.0, -1.0]])
+    mean, std = predict(model, probe, a, cfg.min_std)
+    np.testing.assert_allclose(mean, probe + 0.1 * a, atol=0.02)
+    std = np.asarray(std).mean(-1)
+    assert 0.005 < std[0] < 0.02 and 0.03 < std[1] < 0.07, std
+    assert int(info.epochs) <= cfg.max_epochs and np.isfinite(float(info.val_nll))
+    lp = dynamics_log_prob(model, obs[:2500], act[:2500], nxt[:2500], cfg.min_std)
+    assert np.all(np.isfinite(np.asarray(lp)))
+    norm = fit_norm(obs, act, nxt, valid)
+    assert float(jnp.abs(norm.out_mean).max()) < 0.01  # computed on the valid rows only
+
+
+def test_early_stopping_keeps_the_best_epoch(key):
+    """With few rows and a large model, validation loss turns up; the fit stops and keeps the best epoch."""
+    obs, act, nxt = _heteroscedastic(key, 60)
+    valid = jnp.ones(60, bool)
+    cfg = DynamicsConfig(hidden=(64, 64), max_epochs=200, patience=3, lr=1e-2, val_frac=0.3, steps_per_epoch=20)
+    model, info = jax.jit(train_dynamics, static_argnames="cfg")(jax.random.fold_in(key, 2), obs, act, nxt, valid, cfg)
+    assert int(info.epochs) < cfg.max_epochs
+    # warm start from the returned model: its validation loss is the starting point, never worse
+    _, again = jax.jit(train_dynamics, static_argnames="cfg")(
+        jax.random.fold_in(key, 2), obs, act, nxt, valid, cfg, model
+    )
+    assert float(again.val_nll) <= float(info.val_nll) + 1e-5
