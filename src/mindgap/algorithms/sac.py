@@ -3,7 +3,8 @@
 Twin critics with Polyak-averaged targets, a tanh-squashed Gaussian actor, and a fixed or
 automatically tuned entropy coefficient α (target entropy −dim(A)). One update:
 
-* critic: ``y = r + γ(1 − terminal)(min_i Q̄_i(s', a') − α log π(a'|s'))``, ``a' ~ π(·|s')``;
+* critic: ``y = c·r + γ(1 − terminal)(min_i Q̄_i(s', a') − α log π(a'|s'))``, ``a' ~ π(·|s')``;
+  ``c`` the reward scale (1 by default);
   loss ``Σ_i mean (Q_i(s, a) − y)²``;
 * actor: ``mean(α log π(ã|s) − min_i Q_i(s, ã))``, ``ã ~ π(·|s)`` reparameterised;
 * α: ``mean(−log α · (log π(ã|s) + target_entropy))``;
@@ -50,6 +51,11 @@ class SACConfig:
     """Starting α when it is tuned."""
     learning_starts: int = 1000
     """Environment steps of uniformly random actions before the first update."""
+    target_entropy: float | None = None
+    """Entropy the tuned α aims for; None means −dim(A), the usual choice."""
+    reward_scale: float = 1.0
+    """Factor on the reward in the critic's target (Haarnoja et al. 2018a); the terrain worlds'
+    ±100 terminal rewards make the critic's targets large and its greedy policy unstable."""
 
 
 class SACParams(NamedTuple):
@@ -127,7 +133,7 @@ def sac_losses(params: SACParams, batch: Batch, key: jax.Array, cfg: SACConfig):
     alpha = jnp.exp(params.log_alpha)
     a_next, logp_next = sample_action(params.actor, batch.next_obs, k_next)
     q_next = jnp.min(q_values(params.target, batch.next_obs, a_next), axis=0) - alpha * logp_next
-    y = jax.lax.stop_gradient(batch.reward + cfg.gamma * (1.0 - batch.terminal) * q_next)
+    y = jax.lax.stop_gradient(cfg.reward_scale * batch.reward + cfg.gamma * (1.0 - batch.terminal) * q_next)
 
     def critic_loss(critic):
         q = q_values(critic, batch.obs, batch.act)
@@ -158,7 +164,7 @@ def sac_update(state: SACState, batch: Batch, key: jax.Array, cfg: SACConfig):
     actor = optax.apply_updates(p.actor, upd)
     log_alpha, alpha_opt = p.log_alpha, state.alpha_opt
     if cfg.alpha is None:
-        target_entropy = -batch.act.shape[-1]
+        target_entropy = -batch.act.shape[-1] if cfg.target_entropy is None else cfg.target_entropy
         entropy_gap = jax.lax.stop_gradient(jnp.mean(logp) + target_entropy)
         g_alpha = -entropy_gap  # d/d log α of mean(−log α · (log π + H̄))
         upd, alpha_opt = opt.update(g_alpha, state.alpha_opt, p.log_alpha)

@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from ..algorithms.pbrl import METHODS
+from ..algorithms.sac import SACConfig
 
 
 def add_parsers(sub) -> None:
@@ -27,8 +28,16 @@ def add_parsers(sub) -> None:
             p.add_argument(
                 "--teacher",
                 default="biased",
-                choices=("biased", "true"),
-                help="biased: r_H + log T_H under the belief; true: the ordinary B-Pref teacher",
+                help="biased: r_H + log T_H under the belief; true: the ordinary B-Pref teacher; "
+                "study:STORE: people answering live through the study app (mindgap study serve --db STORE)",
+            )
+            p.add_argument(
+                "--answer-timeout", type=float, default=600.0, help="study teacher: seconds to wait per round"
+            )
+            p.add_argument(
+                "--preferences",
+                type=Path,
+                help="learn the reward offline from a preferences file (mindgap study export)",
             )
             p.add_argument("--belief", help="belief of a biased teacher (default: the world's first)")
             p.add_argument("--queries", type=int, default=800, help="query budget (default 800)")
@@ -40,6 +49,16 @@ def add_parsers(sub) -> None:
         p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
         p.add_argument("--seed", type=int, default=0, help="base seed")
         p.add_argument("--hidden", default="64,64", help="hidden widths of actor and critics (default 64,64)")
+        d = SACConfig()
+        p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random steps before SAC updates")
+        p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
+        p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")
+        p.add_argument(
+            "--reward-scale",
+            type=float,
+            default=d.reward_scale,
+            help=f"factor on rewards in the critic target (default {d.reward_scale})",
+        )
         p.add_argument("--out", type=Path, required=True, help="run folder (reruns resume from its checkpoint)")
         p.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
         p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -48,17 +67,30 @@ def add_parsers(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from .._io import atomic_write
     from ..algorithms.pbrl import method_config, train
-    from ..algorithms.sac import SACConfig
     from ..envs.terrain import load_world
     from ..plotting.learning import curve_stats, save_learning_curves
     from ..plotting.terrain import save_world
 
+    if getattr(args, "preferences", None):
+        from ..study.offline import run_offline
+
+        return run_offline(args)
     world = load_world(args.world)
     try:
         hidden = tuple(int(x) for x in args.hidden.split(","))
     except ValueError:
         raise ValueError(f"--hidden must look like 128,128, got {args.hidden!r}") from None
-    over = dict(total_steps=args.steps, seed=args.seed, sac=SACConfig(hidden=hidden, learning_starts=1000))
+    over = dict(
+        total_steps=args.steps,
+        seed=args.seed,
+        sac=SACConfig(
+            hidden=hidden,
+            learning_starts=args.learning_starts,
+            utd=args.utd,
+            batch_size=args.batch,
+            reward_scale=args.reward_scale,
+        ),
+    )
     teacher = "true"
     if args.command != "sac":
         from ..teachers.preference import TeacherConfig
@@ -70,12 +102,19 @@ def run(args: argparse.Namespace) -> int:
             teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
         )
         teacher = args.teacher
+    host = None
+    if teacher.startswith("study:"):
+        from ..study.live import StudyTeacher
+
+        host = StudyTeacher(teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
+    elif teacher not in ("biased", "true"):
+        raise ValueError(f"--teacher must be biased, true or study:STORE, got {teacher!r}")
     cfg = method_config(args.command, **over)
     res = train(
         world,
         cfg,
         seeds=args.seeds,
-        teacher=teacher,
+        teacher=host or teacher,
         belief=getattr(args, "belief", None),
         out=args.out,
         progress=not args.quiet,
