@@ -1,0 +1,262 @@
+"""PrefBias inference: the reward and the person's belief from preferences by variational Bayes (§3.3.3.1–2).
+
+The person is modelled as preferring segment τ₁ over τ₂ with Bradley–Terry probability
+(Eqs. 3.4–3.5)::
+
+    p̂(τ₁ ≻ τ₂ | w, φ) = σ(S(τ₁) − S(τ₂)),    S(τ) = Σ_t [r_w(s_t, a_t) + log f_φ(s_{t+1} | s_t, a_t)],
+
+the log of ``p̂(τ) ∝ Π_t f_φ(s_{t+1}|s_t, a_t) · exp Σ_t r_w(s_t, a_t)`` over a segment's
+unmasked steps. (The start-state factor ρ(s₀) of Eq. 3.5 is dropped: segments start
+mid-episode, and the simulated person ignores it too.) The posteriors
+q(w) q(φ) are factorised Gaussians (:mod:`~mindgap.models.bayes`) fitted by minimising the
+negative ELBO of Eq. 3.3, per answered pair::
+
+    L(Ω) = E_q[CE(label, p̂)] + (KL[q(w) ‖ p(w)] + KL[q(φ) ‖ p(φ)]) · kl_scale / N,
+
+N the number of answered pairs: dividing Eq. 3.3 by N makes ``kl_scale = 1`` the exact
+ELBO, and smaller values temper the prior. The expectation is a Monte Carlo average over
+``mc_samples`` draws with the local reparameterisation trick (a draw per transition).
+Priors: p(w) = N(w₀, s_w²) centred on a random initialisation w₀; p(φ) = N(ψ, s_φ²)
+centred on the agent's dynamics model f_ψ (``belief_prior="dynamics"``, the default) or on
+a random initialisation (``"random"``), §3.3.3.1 "Prior".
+
+Ω_w and Ω_φ are updated alternately (the two gradients of §3.3.3.1), each with its own
+Adam state: every round takes one step on Ω_w with φ held fixed, then one on Ω_φ with w
+held fixed, each on a fresh minibatch and fresh noise. :func:`fit` runs ``updates`` rounds
+inside one ``lax.scan``; it is jittable with the config static and vmaps over seeds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import optax
+from jax.flatten_util import ravel_pytree
+
+from ..feedback.segments import Segments
+from ..models.bayes import Gaussian, init_gaussian, kl_divergence
+from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes
+from ..models.mlp import Params, init_mlp
+from ..models.prefbias_nets import (
+    belief_log_prob,
+    belief_log_prob_local,
+    reward_local,
+    reward_sizes,
+    reward_value,
+)
+from ..models.reward_ensemble import PrefData
+
+BELIEF_PRIORS = ("dynamics", "random")
+
+
+@dataclasses.dataclass(frozen=True)
+class PrefBiasConfig:
+    """Hyperparameters of the joint inference of r_w and f_φ (hashable: a static jit argument)."""
+
+    reward_hidden: tuple[int, ...] = (64, 64)
+    """Hidden widths of the reward network r_w."""
+    dynamics: DynamicsConfig = DynamicsConfig()
+    """Architecture (and training) of f_ψ; the belief f_φ shares its architecture and scale floor."""
+    belief_prior: str = "dynamics"
+    """Centre of p(φ): 'dynamics' (f_ψ's parameters) or 'random' (a random initialisation)."""
+    reward_prior_std: float = 1.0
+    """Standard deviation s_w of p(w) around its random centre (wide: nothing is known about the reward)."""
+    belief_prior_std: float = 0.1
+    """Standard deviation s_φ of p(φ) around its centre (narrow: a belief is a disturbance of f_ψ)."""
+    init_std: float = 0.01
+    """Posterior standard deviation of every parameter at initialisation."""
+    kl_scale: float = 1.0
+    """Weight of the KL terms per answered pair is kl_scale / N; 1 is the ELBO of Eq. 3.3."""
+    mc_samples: int = 1
+    """Monte Carlo draws (local reparameterisation) per likelihood estimate."""
+    lr: float = 1e-3
+    """Adam step size of both posteriors."""
+    batch_size: int = 64
+    """Answered pairs per gradient step."""
+    updates: int = 300
+    """Alternating rounds per fit (a step on Ω_w, then a step on Ω_φ)."""
+
+    def check(self) -> None:
+        if self.belief_prior not in BELIEF_PRIORS:
+            raise ValueError(f"unknown belief_prior {self.belief_prior!r}: choose from {', '.join(BELIEF_PRIORS)}")
+        for name in ("reward_prior_std", "belief_prior_std", "init_std", "lr"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.kl_scale < 0 or self.mc_samples < 1 or self.batch_size < 1 or self.updates < 1:
+            raise ValueError("kl_scale must be ≥ 0; mc_samples, batch_size and updates at least 1")
+
+
+class PrefBiasState(NamedTuple):
+    """Posteriors, the centres of their priors, the normalisation f_φ reads, optimiser states."""
+
+    reward: Gaussian
+    belief: Gaussian
+    reward_prior: Params
+    belief_prior: Params
+    norm: Norm
+    opt_w: optax.OptState
+    opt_phi: optax.OptState
+
+
+class FitInfo(NamedTuple):
+    """Last round's negative ELBO per pair (w step), and accuracy of the posterior-mean model on all answered pairs."""
+
+    loss: jax.Array
+    accuracy: jax.Array
+
+
+def prefbias_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: PrefBiasConfig, dynamics: DynamicsModel):
+    """Priors and posteriors before any preference (Alg. 2, line 1).
+
+    q(w) starts at the centre of p(w), a random initialisation; q(φ) at the centre of p(φ):
+    f_ψ's parameters (``"dynamics"``) or a random initialisation (``"random"``). f_φ reads
+    ``dynamics.norm`` in both cases. All posterior σ start at ``cfg.init_std``.
+    """
+    cfg.check()
+    k_w, k_phi = jax.random.split(key)
+    w0 = init_mlp(k_w, reward_sizes(obs_dim, act_dim, cfg.reward_hidden))
+    if cfg.belief_prior == "dynamics":
+        phi0 = dynamics.params
+    else:
+        phi0 = init_mlp(k_phi, dynamics_sizes(obs_dim, act_dim, cfg.dynamics.hidden))
+    reward, belief = init_gaussian(w0, cfg.init_std), init_gaussian(phi0, cfg.init_std)
+    opt = optax.adam(cfg.lr)
+    opt_w, opt_phi = opt.init(ravel_pytree(reward)[0]), opt.init(ravel_pytree(belief)[0])  # see fit
+    return PrefBiasState(reward, belief, w0, phi0, dynamics.norm, opt_w, opt_phi)
+
+
+def with_dynamics(state: PrefBiasState, dynamics: DynamicsModel, cfg: PrefBiasConfig) -> PrefBiasState:
+    """Re-centre p(φ) on a retrained f_ψ (Alg. 2, lines 4 and 7); the posteriors are kept.
+
+    Retrain f_ψ with ``init=`` the previous model so its normalisation, which f_φ reads,
+    stays the same. With ``belief_prior="random"`` only the normalisation is taken.
+    """
+    prior = dynamics.params if cfg.belief_prior == "dynamics" else state.belief_prior
+    return state._replace(belief_prior=prior, norm=dynamics.norm)
+
+
+def segment_scores(rewards: jax.Array, log_f: jax.Array, mask: jax.Array) -> jax.Array:
+    """S(τ) = Σ_t [r(s_t, a_t) + log f(s_{t+1} | s_t, a_t)] over unmasked steps (log of Eq. 3.5): [..., L] → [...]."""
+    return jnp.sum(jnp.where(mask, rewards + log_f, 0.0), axis=-1)
+
+
+def bt_cross_entropy(logit: jax.Array, label: jax.Array) -> jax.Array:
+    """−[y log σ(S₁ − S₂) + (1 − y) log σ(S₂ − S₁)] (Eq. 3.4 and the loss below it), elementwise."""
+    return -(label * jax.nn.log_sigmoid(logit) + (1 - label) * jax.nn.log_sigmoid(-logit))
+
+
+def _pair(seg_a: Segments, seg_b: Segments) -> Segments:
+    # both sides of every pair in one batch [2, K, L, ·]: one network evaluation instead of two
+    return jax.tree.map(lambda x, y: jnp.stack([x, y]), seg_a, seg_b)
+
+
+def _logits_local(reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, keys, cfg: PrefBiasConfig):
+    """S(a) − S(b) of each pair for one local-reparameterisation draw of r_w and f_φ (keys [2]): [K]."""
+    seg = _pair(seg_a, seg_b)
+    k_r, k_f = keys[0], keys[1]
+    r = reward_local(reward, seg.obs, seg.act, k_r)
+    lf = belief_log_prob_local(belief, norm, seg.obs, seg.act, seg.next_obs, k_f, cfg.dynamics.min_std)
+    s = segment_scores(r, lf, seg.mask)
+    return s[0] - s[1]
+
+
+def scores_fixed(w: Params, phi: Params, norm: Norm, seg: Segments, cfg: PrefBiasConfig) -> jax.Array:
+    """S(τ) of each segment for fixed weights of r_w and f_φ (posterior means or one draw): [K]."""
+    lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std)
+    return segment_scores(reward_value(w, seg.obs, seg.act), lf, seg.mask)
+
+
+def preference_prob(w: Params, phi: Params, norm: Norm, seg_a: Segments, seg_b: Segments, cfg: PrefBiasConfig):
+    """p̂(a ≻ b | w, φ) of Eq. 3.4 for fixed weights: [K]."""
+    s = scores_fixed(w, phi, norm, _pair(seg_a, seg_b), cfg)
+    return jax.nn.sigmoid(s[0] - s[1])
+
+
+def expected_nll(reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, label, keys, cfg: PrefBiasConfig):
+    """Monte Carlo estimate of E_q[CE] per pair (the likelihood term of Eq. 3.3 divided by N): scalar.
+
+    ``keys [M, 2]``: one pair of keys (reward, belief) per draw; split them with
+    ``jax.random.split(key, (cfg.mc_samples, 2))``.
+    """
+
+    def draw(k):
+        return bt_cross_entropy(_logits_local(reward, belief, norm, seg_a, seg_b, k, cfg), label).mean()
+
+    return jax.vmap(draw)(keys).mean()
+
+
+def negative_elbo(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfig) -> jax.Array:
+    """Eq. 3.3 per answered pair over all of ``data``'s answered pairs (for monitoring and tests): scalar."""
+    n = jnp.maximum(data.count, 1)
+    seen = jnp.arange(data.label.shape[0]) < data.count
+
+    def draw(k):
+        logit = _logits_local(state.reward, state.belief, state.norm, data.seg_a, data.seg_b, k, cfg)
+        return jnp.sum(jnp.where(seen, bt_cross_entropy(logit, data.label), 0.0)) / n
+
+    nll = jax.vmap(draw)(jax.random.split(key, (cfg.mc_samples, 2))).mean()
+    kl = kl_divergence(state.reward, state.reward_prior, cfg.reward_prior_std) + kl_divergence(
+        state.belief, state.belief_prior, cfg.belief_prior_std
+    )
+    return nll + kl * cfg.kl_scale / n
+
+
+def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfig) -> tuple[PrefBiasState, FitInfo]:
+    """Alternating Adam steps on q(w) and q(φ) over the answered pairs of ``data`` (Alg. 2, line 7).
+
+    ``cfg.updates`` rounds; in each, a minibatch of ``cfg.batch_size`` answered pairs drawn
+    with replacement and a step on Ω_w of ``E_q[CE] + kl_scale · KL[q(w)‖p(w)] / N``, then
+    a fresh minibatch and a step on Ω_φ of ``E_q[CE] + kl_scale · KL[q(φ)‖p(φ)] / N``.
+
+    Returns:
+        (new state, :class:`FitInfo`).
+    """
+    opt = optax.adam(cfg.lr)
+    n = jnp.maximum(data.count, 1)
+    kl_weight = cfg.kl_scale / n
+    # Flat parameter vectors keep the compiled program small (one Adam update per posterior).
+    flat_w, unravel_w = ravel_pytree(state.reward)
+    flat_phi, unravel_phi = ravel_pytree(state.belief)
+
+    # Every minibatch and noise key drawn up front: random-number ops inside the scan body
+    # cost far more compile time than their share of the work.
+    k_idx, k_mc = jax.random.split(key)
+    all_idx = jax.random.randint(k_idx, (2 * cfg.updates, cfg.batch_size), 0, n)
+    all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 2))
+
+    def loss_fn(flat, idx, keys):
+        reward, belief = unravel_w(flat[0]), unravel_phi(flat[1])
+        seg_a, seg_b = jax.tree.map(lambda x: x[idx], data.seg_a), jax.tree.map(lambda x: x[idx], data.seg_b)
+        nll = expected_nll(reward, belief, state.norm, seg_a, seg_b, data.label[idx], keys, cfg)
+        kl_w = kl_divergence(reward, state.reward_prior, cfg.reward_prior_std)
+        kl_phi = kl_divergence(belief, state.belief_prior, cfg.belief_prior_std)
+        return nll + kl_weight * (kl_w + kl_phi)
+
+    def half_step(carry, xs):
+        # One program for both halves of a round: the gradient of the joint loss with respect
+        # to Ω_w is that of §3.3.3.1 (KL[q(φ)‖p(φ)] does not depend on Ω_w), and vice versa;
+        # ``on_w`` decides which posterior (and which Adam state) takes the step.
+        (w, phi), (opt_w, opt_phi) = carry
+        idx, keys, on_w = xs
+        loss, (g_w, g_phi) = jax.value_and_grad(loss_fn)((w, phi), idx, keys)
+        upd_w, new_opt_w = opt.update(g_w, opt_w, w)
+        upd_phi, new_opt_phi = opt.update(g_phi, opt_phi, phi)
+
+        def pick(cond, new, old):
+            return jax.tree.map(lambda a, b: jnp.where(cond, a, b), new, old)
+
+        w, opt_w = pick(on_w, (w + upd_w, new_opt_w), (w, opt_w))
+        phi, opt_phi = pick(~on_w, (phi + upd_phi, new_opt_phi), (phi, opt_phi))
+        return ((w, phi), (opt_w, opt_phi)), loss
+
+    on_w = jnp.arange(2 * cfg.updates) % 2 == 0  # w first, then φ, in every round
+    carry = ((flat_w, flat_phi), (state.opt_w, state.opt_phi))
+    ((flat_w, flat_phi), (opt_w, opt_phi)), losses = jax.lax.scan(half_step, carry, (all_idx, all_keys, on_w))
+    state = state._replace(reward=unravel_w(flat_w), belief=unravel_phi(flat_phi), opt_w=opt_w, opt_phi=opt_phi)
+    p = preference_prob(state.reward.mean, state.belief.mean, state.norm, data.seg_a, data.seg_b, cfg)
+    seen = jnp.arange(data.label.shape[0]) < data.count
+    hit = ((p > 0.5) == (data.label > 0.5)) | (data.label == 0.5)
+    return state, FitInfo(losses[-2], jnp.sum(hit & seen) / n)
