@@ -84,14 +84,9 @@ def kl_divergence(post: Gaussian, prior_mean: Params | None, prior_std: float | 
 
 def sample_params(post: Gaussian, key: jax.Array) -> Params:
     """One draw θ = μ + σ ε of all parameters, ε ~ N(0, I)."""
-    leaves, tree = jax.tree.flatten(post.mean)
-    keys = jax.tree.unflatten(tree, list(jax.random.split(key, len(leaves))))
-    return jax.tree.map(
-        lambda mu, rho, k: mu + jax.nn.softplus(rho) * jax.random.normal(k, mu.shape, mu.dtype),
-        post.mean,
-        post.rho,
-        keys,
-    )
+    mu, unravel = ravel_pytree(post.mean)
+    sigma = jax.nn.softplus(ravel_pytree(post.rho)[0])
+    return unravel(mu + sigma * jax.random.normal(key, mu.shape, mu.dtype))  # one draw: see bnn_local
 
 
 def dense_moments(mean: tuple, sigma: tuple, x: jax.Array) -> tuple[jax.Array, jax.Array]:
