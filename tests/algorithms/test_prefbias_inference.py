@@ -24,7 +24,7 @@ from mindgap.feedback.segments import Segments
 from mindgap.models.bayes import init_gaussian
 from mindgap.models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes, train_dynamics
 from mindgap.models.mlp import init_mlp
-from mindgap.models.prefbias_nets import REWARD_BOUND, belief_noise_map, reward_sizes
+from mindgap.models.prefbias_nets import REWARD_BOUND, belief_noise_map, reward_sizes, table_noise_map
 from mindgap.models.reward_ensemble import PrefData
 from mindgap.teachers.preference import TeacherConfig, answer
 
@@ -239,11 +239,18 @@ def test_fit_recovers_a_planted_noisy_ice_belief(key):
         return belief_noise_map(state.belief.mean, state.norm, _NAV1.params, dcfg.min_std), info
 
     maps, info = jax.jit(jax.vmap(run))(jnp.stack([biased, truthful]), jax.random.split(jax.random.fold_in(key, 6), 2))
-    learned, control = _terrain_means(maps[0]), _terrain_means(maps[1])
-    prior = _terrain_means(belief_noise_map(psi.params, psi.norm, _NAV1.params, dcfg.min_std))
+    prior_map = belief_noise_map(psi.params, psi.norm, _NAV1.params, dcfg.min_std)
+    learned, control, prior = _terrain_means(maps[0]), _terrain_means(maps[1]), _terrain_means(prior_map)
     believed_ice = float(_NAV1.beliefs["human"].noise[ICE])  # 0.3 cells
     # margins: over six data seeds the three ratios were at least 1.14, 1.29 and 2 (seed 0: 1.44, 1.29, 17)
     assert learned["ice"] > 1.05 * max(learned["floor"], learned["sand"]), learned
     assert learned["ice"] > 1.15 * control["ice"], (learned, control)
     assert abs(learned["ice"] - believed_ice) < abs(prior["ice"] - believed_ice), (learned, prior)
     assert float(info.accuracy[0]) > 0.7
+    # belief error: RMS over cells between predicted noise and the person's table, below the prior's
+    target = np.asarray(table_noise_map(_NAV1.belief("human")))
+
+    def rms(m):
+        return float(np.sqrt(np.nanmean((np.asarray(m) - target) ** 2)))
+
+    assert rms(maps[0]) < 0.7 * rms(prior_map), (rms(maps[0]), rms(prior_map))

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mindgap.envs.terrain import load_world
-from mindgap.envs.terrain.layout import WALL
+from mindgap.envs.terrain.layout import FLOOR, ICE, PIT, SAND, WALL
 from mindgap.feedback.replay import relabel, replay_add, replay_init
 from mindgap.models.gaussian_dynamics import Norm, dynamics_sizes
 from mindgap.models.mlp import init_mlp
@@ -16,6 +16,7 @@ from mindgap.models.prefbias_nets import (
     posterior_reward,
     reward_sizes,
     reward_value,
+    table_noise_map,
 )
 
 
@@ -59,3 +60,18 @@ def test_belief_noise_map_reads_cells_and_marks_walls(key):
     _, std = belief_predict(params, norm, jnp.array([2 * 1.5 / wd - 1, 2 * 1.5 / h - 1]), jnp.array([1.0, 0.0]), 0.01)
     one = np.asarray(belief_noise_map(params, norm, world.params, 0.01, actions=jnp.array([[1.0, 0.0]])))
     np.testing.assert_allclose(one[1, 1], 0.5 * (std[0] * wd / 2 + std[1] * h / 2), rtol=1e-5)
+
+
+def test_table_noise_map_reads_the_belief_table():
+    nav1 = load_world("nav1")
+    belief = nav1.beliefs["human"]
+    noise = np.asarray(table_noise_map(nav1.belief("human")))
+    grid = np.asarray(nav1.params.grid)
+    for code in (FLOOR, ICE, SAND):
+        np.testing.assert_allclose(noise[grid == code], float(belief.noise[code]), rtol=1e-6)
+    assert np.all(np.isnan(noise[grid == WALL]))
+    # nav2's belief adds noise near the pit: the cell just above it is noisier than a far corner
+    nav2 = load_world("nav2")
+    noise2 = np.asarray(table_noise_map(nav2.belief()))
+    assert np.asarray(nav2.params.grid)[2, 5] == PIT
+    assert noise2[1, 5] > 2 * noise2[6, 1]

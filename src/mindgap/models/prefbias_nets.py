@@ -22,7 +22,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain.dynamics import is_wall
+from ..envs.terrain.dynamics import is_wall, move_model
 from .bayes import Gaussian, bnn_local
 from .gaussian_dynamics import Norm, gaussian_head, log_density, normalise_input
 from .mlp import Params, mlp
@@ -79,6 +79,12 @@ CROSS_ACTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 """The actions :func:`belief_noise_map` averages over: full pushes along each axis."""
 
 
+def _cell_centres(world_params):
+    h, w = world_params.grid.shape
+    rows, cols = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
+    return rows, cols, jnp.stack([cols, rows], -1).astype(jnp.float32) + 0.5  # [H, W, 2] (x, y)
+
+
 def belief_noise_map(
     params: Params, norm: Norm, world_params, min_std: float, actions: jax.Array | None = None
 ) -> jax.Array:
@@ -94,12 +100,23 @@ def belief_noise_map(
     """
     h, w = world_params.grid.shape
     actions = jnp.asarray(CROSS_ACTIONS if actions is None else actions, jnp.float32)
-    rows, cols = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
+    rows, cols, pos = _cell_centres(world_params)
     scale = jnp.array([w, h], jnp.float32)
-    pos = jnp.stack([cols, rows], -1).astype(jnp.float32) + 0.5  # [H, W, 2] (x, y)
     obs = 2.0 * pos / scale - 1.0  # as envs.terrain.observe
     obs = jnp.broadcast_to(obs[:, :, None], (h, w, actions.shape[0], 2))
     act = jnp.broadcast_to(actions, obs.shape)
     _, std = belief_predict(params, norm, obs, act, min_std)  # [H, W, n, 2], observation units
     cells = (std * 0.5 * scale).mean((-1, -2))
     return jnp.where(is_wall(world_params, rows, cols), jnp.nan, cells)
+
+
+def table_noise_map(world_params) -> jax.Array:
+    """The noise scale σ(s) a dynamics table gives each cell centre (terrain noise plus the pit term).
+
+    Pass a world's parameters under a person's belief (``world.belief(name)``) to draw that
+    belief's noise next to :func:`belief_noise_map`, or to measure how far a learned belief is
+    from it. Returns [H, W] in cells, NaN on walls.
+    """
+    rows, cols, pos = _cell_centres(world_params)
+    sigma = jax.vmap(jax.vmap(lambda p: move_model(world_params, p, jnp.zeros(2))[1]))(pos)
+    return jnp.where(is_wall(world_params, rows, cols), jnp.nan, sigma)
