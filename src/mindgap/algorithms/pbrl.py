@@ -197,28 +197,40 @@ def _learn(carry: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
 
 
 def _feedback_host(carry: Carry, teacher: HostTeacher, cfg: PbRLConfig):
-    """A feedback round with a teacher outside jit (people): jitted selection, the call, jitted learning.
-
-    Only the queries the budget still allows are shown; every seed's are asked in one call.
-    """
+    """A feedback round with a teacher outside jit (people): jitted selection, the call, jitted learning."""
     carry, seg_a, seg_b, _, k_r = _select(carry, cfg)
-    seeds = carry.queries.shape[0]
-    ask = int(min(cfg.per_round, cfg.queries - int(carry.queries.min())))
+    labels, answered = host_answers(teacher, seg_a, seg_b, carry.queries, cfg.per_round, cfg.queries)
+    return _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg)
+
+
+def host_answers(teacher: HostTeacher, seg_a: Segments, seg_b: Segments, queries, per_round: int, budget: int):
+    """Ask a host teacher every seed's queries ``[S, K, L, ·]`` in one call.
+
+    Only the queries the budget still allows are shown (``queries [S]``: pairs shown so far);
+    the rest come back unanswered.
+
+    Returns:
+        (labels [S, K] float32, answered [S, K] bool), as JAX arrays.
+    """
+    seeds = queries.shape[0]
+    ask = int(min(per_round, budget - int(queries.min())))
 
     def flat(seg):
         return Segments(*(np.asarray(x)[:, :ask].reshape(seeds * ask, *x.shape[2:]) for x in seg))
 
     got, ok = teacher(flat(seg_a), flat(seg_b))
-    labels = np.zeros((seeds, cfg.per_round), np.float32)
-    answered = np.zeros((seeds, cfg.per_round), bool)
+    labels = np.zeros((seeds, per_round), np.float32)
+    answered = np.zeros((seeds, per_round), bool)
     labels[:, :ask] = np.asarray(got, np.float32).reshape(seeds, ask)
     answered[:, :ask] = np.asarray(ok, bool).reshape(seeds, ask)
-    return _learn(carry, seg_a, seg_b, jnp.asarray(labels), jnp.asarray(answered), k_r, cfg)
+    return jnp.asarray(labels), jnp.asarray(answered)
 
 
 @partial(jax.jit, static_argnames=("cfg",))
-def _reset_critic(carry: Carry, cfg: PbRLConfig) -> Carry:
-    def one(c: Carry):
+def _reset_critic(carry, cfg):
+    """Re-initialise every seed's critic (PEBBLE, after pre-training); any carry with ``loop`` and ``key``."""
+
+    def one(c):
         key, k = jax.random.split(c.key)
         fresh = sac_init(k, 2, 2, cfg.sac)
         sac = c.loop.sac
@@ -246,7 +258,7 @@ def _chunk(carry: Carry, world_params, cfg: PbRLConfig, phase: str) -> Carry:
     return carry._replace(loop=loop)
 
 
-def _evaluate(carry: Carry, world_params, episodes: int, step: int, base_seed: int):
+def _evaluate(carry, world_params, episodes: int, step: int, base_seed: int):
     keys = jax.random.split(rng.key(10_000 + base_seed + step), carry.queries.shape[0])
     return jax.vmap(lambda k, a: evaluate(k, a, world_params, episodes))(keys, carry.loop.sac.params.actor)
 
@@ -285,18 +297,55 @@ def train(
         [seeds, episodes], ``paths`` (per seed, greedy rollouts) and ``config``.
     """
     cfg.check()
+    host, belief_params, tcfg, meta = teacher_setup(world, cfg, seeds, teacher, belief)
+    params = world.params
+    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+
+    def feedback(c):
+        if host is None:
+            return _feedback(c, params, belief_params, cfg, tcfg)[0]
+        return _feedback_host(c, host, cfg)[0]
+
+    def chunk(c, phase):
+        return _chunk(c, params, cfg, phase)
+
+    return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
+
+
+def teacher_setup(world, cfg, seeds: int, teacher, belief: str | None):
+    """Check the teacher and seeds; the host teacher (or None), the simulated person's belief and config, run record.
+
+    Returns:
+        (host teacher or None, belief parameters or None, TeacherConfig, metadata dict).
+    """
     host = teacher if callable(teacher) else None
     if host is None and teacher not in ("biased", "true"):
         raise ValueError(f"teacher must be 'biased', 'true' or a host teacher, got {teacher!r}")
     if seeds < 1:
         raise ValueError("seeds must be at least 1")
-    params = world.params
     belief_params = world.belief(belief) if teacher == "biased" else None
     tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher == "biased")
     meta = {"world": world.name, "source": world.source, "world_hash": _fingerprint(world), "seeds": seeds}
     meta.update(teacher=teacher if host is None else host.name, belief=belief)
     meta["config"] = cfg.as_dict()
-    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+    return host, belief_params, tcfg, meta
+
+
+def drive(world, cfg, seeds: int, meta: dict, carry, feedback, chunk, *, out=None, progress=True, fresh=False) -> dict:
+    """The engine's driver, shared by PbRL and PrefBias: phases, feedback rounds, evaluation, checkpoints.
+
+    Args:
+        cfg: a run config with the fields of :class:`PbRLConfig` the schedule reads (``method``,
+            ``total_steps``, ``chunk``, ``eval_every``, ``eval_episodes``, ``sac``, ``queries``,
+            ``feedback_every``, ``reset_critic``, ``seed``, ``learning_steps()``).
+        carry: the initial carry of every seed (a NamedTuple with ``loop``, ``key``, ``queries``).
+        feedback: ``carry → carry``, one feedback round of every seed.
+        chunk: ``(carry, phase) → carry``, ``cfg.chunk`` environment steps of every seed.
+
+    Returns:
+        dict with ``curve``, ``final_returns``, ``paths``, ``config`` and the final ``carry``.
+    """
+    params = world.params
     step, rows = 0, []
     if out is not None:
         out = Path(out)
@@ -328,13 +377,10 @@ def train(
         if cfg.method != "sac" and phase == "train":
             due = (step - first_feedback) % cfg.feedback_every == 0
             if due and int(carry.queries.min()) < cfg.queries:
-                if host is None:
-                    carry, (loss, acc) = _feedback(carry, params, belief_params, cfg, tcfg)
-                else:
-                    carry, (loss, acc) = _feedback_host(carry, host, cfg)
+                carry = feedback(carry)
             if step == first_feedback and cfg.reset_critic:
                 carry = _reset_critic(carry, cfg)
-        carry = _chunk(carry, params, cfg, phase)
+        carry = chunk(carry, phase)
         step += cfg.chunk
         if step % cfg.eval_every == 0 or step == cfg.total_steps:
             rets = np.asarray(_evaluate(carry, params, cfg.eval_episodes, step, cfg.seed)[0])
