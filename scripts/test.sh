@@ -18,4 +18,5 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
   fi
 fi
 .venv/bin/ruff check src tests benchmarks
-exec .venv/bin/python -m pytest "$@"
+# Two test processes (pytest-xdist): most of the suite's time is XLA compiling, one core each.
+exec .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" "$@"
