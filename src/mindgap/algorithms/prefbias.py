@@ -1,0 +1,317 @@
+"""PrefBias (Algorithm 2): preference-based RL that learns the person's belief along with the reward.
+
+The loop of Algorithm 2 on the engine of :mod:`~mindgap.algorithms.pbrl` (same phases,
+checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
+
+1. ``random`` steps until ``sac.learning_starts``, then (optionally, as PEBBLE)
+   ``explore``: SAC on the state-entropy reward for ``explore_steps``, critic reset after;
+2. every ``feedback_every`` steps while the budget lasts, a feedback round:
+
+   * train the agent's dynamics model f_ψ on the replay buffer D_dyna (line 4; §3.3.3.4),
+     from scratch the first time, warm-started (``init=``) after, so its normalisation —
+     which f_φ reads — stays fixed;
+   * re-centre the belief prior p(φ) on the new f_ψ (``belief_prior="dynamics"``, §3.3.3.1);
+   * select K = ``per_round`` of ``candidates × K`` random pairs of segments with the
+     sampler (default ``preference_disagreement``, §3.3.3.3) and ask the person (line 6):
+     the simulated teacher of :mod:`~mindgap.teachers.preference` (biased: r_H + log T_H;
+     true: r_H) or a host teacher (people through the study app);
+   * fit q(w) q(φ) to all answers by the negative ELBO (line 7; Eqs. 3.2–3.5);
+   * relabel the whole buffer with the posterior-mean reward r_w (PEBBLE's relabelling);
+
+3. in between, SAC on the relabelled reward under the true dynamics (line 9).
+
+The first round also initialises the posteriors (line 1): q(φ) starts at the first f_ψ.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import rng
+from ..feedback.prefbias_queries import SAMPLERS, select_queries
+from ..feedback.replay import relabel
+from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
+from ..models.prefbias_nets import belief_noise_map, posterior_reward
+from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
+from ..teachers.host import HostTeacher
+from ..teachers.preference import TeacherConfig, answer
+from .pbrl import drive, host_answers, teacher_setup
+from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
+from .sac import SACConfig
+from .sac_loop import LoopState, loop_init, run_chunk
+
+
+@dataclasses.dataclass(frozen=True)
+class PrefBiasLoopConfig:
+    """One PrefBias run (all seeds share it; hashable, a static jit argument)."""
+
+    method: str = "prefbias"
+    """Always 'prefbias' (the engine's schedule reads it)."""
+    total_steps: int = 40_000
+    """Environment steps per seed."""
+    chunk: int = 1000
+    """Steps per jitted chunk; every boundary below is a multiple of it."""
+    eval_every: int = 2000
+    """Steps between evaluations of the greedy policy under the true reward."""
+    eval_episodes: int = 10
+    """Episodes per evaluation."""
+    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
+    prefbias: PrefBiasConfig = PrefBiasConfig()
+    """Inference of r_w and f_φ, and the dynamics model f_ψ (``prefbias.dynamics``)."""
+    queries: int = 800
+    """Total query budget (pairs shown)."""
+    per_round: int = 50
+    """Queries per feedback round (K)."""
+    feedback_every: int = 2000
+    """Steps between feedback rounds."""
+    sampler: str = "preference_disagreement"
+    """uniform, disagreement, entropy or preference_disagreement (§3.3.3.3)."""
+    candidates: int = 3
+    """Random pairs drawn per query kept (3K candidates, §3.3.3.3)."""
+    samples: int = 8
+    """Posterior draws for the disagreement and entropy samplers."""
+    segment: int = 10
+    """Steps per segment."""
+    explore_steps: int = 4000
+    """State-entropy pre-training steps (as PEBBLE; 0 for none)."""
+    knn: int = 5
+    """k of the k-NN entropy estimate."""
+    reset_critic: bool = True
+    """Re-initialise the critic after pre-training (as PEBBLE)."""
+    teacher: TeacherConfig = TeacherConfig()
+    seed: int = 0
+    """Base seed; seed i of a run uses seed + i."""
+
+    def check(self) -> None:
+        if self.method != "prefbias":
+            raise ValueError(f"method must be 'prefbias', got {self.method!r}")
+        if self.sampler not in SAMPLERS:
+            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        self.prefbias.check()
+        for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
+            if getattr(self, name) % self.chunk:
+                raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")
+        if self.sac.learning_starts % self.chunk:
+            raise ValueError(f"sac.learning_starts must be a multiple of chunk ({self.chunk})")
+        if self.queries < 1 or self.per_round < 1 or self.candidates < 1:
+            raise ValueError("queries, per_round and candidates must be at least 1")
+        if self.learning_steps() >= self.total_steps:
+            raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
+
+    def learning_steps(self) -> int:
+        """First step of the ``train`` phase (and of the first feedback round)."""
+        return self.sac.learning_starts + self.explore_steps
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+_FAST = dict(
+    total_steps=1500,
+    chunk=250,
+    eval_every=500,
+    eval_episodes=4,
+    feedback_every=250,
+    queries=30,
+    per_round=10,
+    segment=5,
+    explore_steps=250,
+    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
+    prefbias=PrefBiasConfig(
+        reward_hidden=(8, 8),
+        updates=10,
+        batch_size=8,
+        dynamics=DynamicsConfig(hidden=(8, 8), max_epochs=3, steps_per_epoch=5, batch_size=32),
+    ),
+)
+PRESETS = ("full", "fast")
+
+
+def prefbias_config(preset: str = "full", **overrides) -> PrefBiasLoopConfig:
+    """A preset with ``overrides`` applied, checked.
+
+    ``full``: the defaults of :class:`PrefBiasLoopConfig`. ``fast``: tiny networks and fits,
+    1500 steps, 30 queries — seconds once compiled; for tests and dry runs, not for results.
+    """
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}: choose from {', '.join(PRESETS)}")
+    base = _FAST if preset == "fast" else {}
+    cfg = PrefBiasLoopConfig(**{**base, **overrides})
+    cfg.check()
+    return cfg
+
+
+class PrefBiasCarry(NamedTuple):
+    """Everything a run carries between chunks, each leaf with a leading seed axis."""
+
+    loop: LoopState
+    model: PrefBiasState
+    dynamics: DynamicsModel
+    prefs: PrefData
+    key: jax.Array
+    queries: jax.Array
+
+
+def _init(keys, world_params, cfg: PrefBiasLoopConfig) -> PrefBiasCarry:
+    # Placeholders of the right structure: the first feedback round fits f_ψ and its
+    # normalisation and initialises the posteriors from it (Alg. 2, line 1).
+    pcfg = cfg.prefbias
+
+    def one(k):
+        k_loop, k_dyn, k_model, k_run = jax.random.split(k, 4)
+        norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.ones(2))
+        dyn = dynamics_init(k_dyn, 2, 2, pcfg.dynamics, norm)
+        return PrefBiasCarry(
+            loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
+            prefbias_init(k_model, 2, 2, pcfg, dyn),
+            dyn,
+            prefs_init(cfg.queries, cfg.segment, 2, 2),
+            k_run,
+            jnp.zeros((), jnp.int32),
+        )
+
+    return jax.vmap(one)(keys)
+
+
+def _select_one(c: PrefBiasCarry, cfg: PrefBiasLoopConfig):
+    """Lines 4 and 6 of Alg. 2 for one seed: (re)train f_ψ, re-centre p(φ), pick the queries.
+
+    In the first round (no query shown yet) f_ψ starts afresh with the normalisation of the
+    buffer and the posteriors are initialised from it (line 1); later rounds warm-start f_ψ
+    and keep the posteriors. Both cases are one program (a select, not a branch), so a run
+    compiles one feedback round.
+    """
+    pcfg = cfg.prefbias
+    key, k_dyn, k_psi0, k_init, k_q, k_t, k_r = jax.random.split(c.key, 7)
+    buf = c.loop.replay
+    valid = jnp.arange(buf.capacity) < buf.size
+    first = c.queries == 0
+    fresh = dynamics_init(k_psi0, 2, 2, pcfg.dynamics, fit_norm(buf.obs, buf.act, buf.next_obs, valid))
+    start = _where(first, fresh, c.dynamics)
+    dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, pcfg.dynamics, init=start)
+    model = _where(first, prefbias_init(k_init, 2, 2, pcfg, dyn), with_dynamics(c.model, dyn, pcfg))
+    seg_a, seg_b = select_queries(
+        k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples
+    )
+    return c._replace(key=key, model=model, dynamics=dyn), seg_a, seg_b, k_t, k_r
+
+
+def _where(cond, a, b):
+    return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
+
+
+def _learn_one(c: PrefBiasCarry, seg_a, seg_b, labels, answered, k_r, cfg: PrefBiasLoopConfig):
+    """Line 7 of Alg. 2 for one seed, then relabelling: keep answers within the budget, fit q(w) q(φ)."""
+    left = cfg.queries - c.queries
+    answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
+    prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
+    model, info = fit(c.model, prefs, k_r, cfg.prefbias)
+    replay = relabel(c.loop.replay, posterior_reward, model.reward.mean)
+    shown = jnp.minimum(cfg.per_round, left)
+    c = c._replace(loop=c.loop._replace(replay=replay), model=model, prefs=prefs, queries=c.queries + shown)
+    return c, info
+
+
+@partial(jax.jit, static_argnames=("cfg", "tcfg"))
+def _feedback(carry, world_params, belief_params, cfg: PrefBiasLoopConfig, tcfg: TeacherConfig):
+    """One feedback round of every seed with the simulated person, in one program."""
+
+    def one(c):
+        c, seg_a, seg_b, k_t, k_r = _select_one(c, cfg)
+        labels, answered = answer(k_t, seg_a, seg_b, world_params, belief_params, tcfg)
+        return _learn_one(c, seg_a, seg_b, labels, answered, k_r, cfg)
+
+    return jax.vmap(one)(carry)
+
+
+@partial(jax.jit, static_argnames=("cfg",))
+def _select(carry, cfg: PrefBiasLoopConfig):
+    return jax.vmap(lambda c: _select_one(c, cfg))(carry)
+
+
+@partial(jax.jit, static_argnames=("cfg",))
+def _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg: PrefBiasLoopConfig):
+    return jax.vmap(lambda *xs: _learn_one(*xs, cfg))(carry, seg_a, seg_b, labels, answered, k_r)
+
+
+def _feedback_host(carry, teacher: HostTeacher, cfg: PrefBiasLoopConfig):
+    """A round with a teacher outside jit: jitted f_ψ and selection, the call, jitted inference."""
+    carry, seg_a, seg_b, _, k_r = _select(carry, cfg)
+    labels, answered = host_answers(teacher, seg_a, seg_b, carry.queries, cfg.per_round, cfg.queries)
+    return _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg)
+
+
+def _chunk(carry: PrefBiasCarry, world_params, cfg: PrefBiasLoopConfig, phase: str) -> PrefBiasCarry:
+    learned = phase == "train"
+    loop = jax.vmap(
+        lambda ls, w: run_chunk(
+            ls,
+            world_params,
+            w,
+            n_steps=cfg.chunk,
+            cfg=cfg.sac,
+            phase=phase,
+            reward_fn=posterior_reward if learned else None,
+            knn=cfg.knn,
+        )
+    )(carry.loop, carry.model.reward.mean)
+    return carry._replace(loop=loop)
+
+
+@partial(jax.jit, static_argnames=("min_std",))
+def _noise_maps(carry: PrefBiasCarry, world_params, min_std: float):
+    def one(c):
+        belief = belief_noise_map(c.model.belief.mean, c.model.norm, world_params, min_std)
+        agent = belief_noise_map(c.dynamics.params, c.dynamics.norm, world_params, min_std)
+        return belief, agent
+
+    return jax.vmap(one)(carry)
+
+
+def train(
+    world,
+    cfg: PrefBiasLoopConfig,
+    seeds: int = 1,
+    teacher: str | HostTeacher = "biased",
+    belief: str | None = None,
+    out: Path | None = None,
+    progress: bool = True,
+    fresh: bool = False,
+) -> dict:
+    """Run ``seeds`` seeds of PrefBias (Algorithm 2) on a terrain world; checkpoint to ``out``.
+
+    Args:
+        world: a :class:`~mindgap.envs.terrain.TerrainWorld`.
+        teacher: ``"biased"`` (r_H + log T_H under ``belief``, default the world's first),
+            ``"true"`` (r_H only) or a :class:`~mindgap.teachers.host.HostTeacher`.
+
+    Returns:
+        the dict of :func:`mindgap.algorithms.pbrl.train` (``curve``, ``final_returns``,
+        ``paths``, ``config``, ``carry``) plus ``belief_noise`` [seeds, H, W], the learned
+        belief's noise per cell (:func:`~mindgap.models.prefbias_nets.belief_noise_map`,
+        NaN on walls), and ``dynamics_noise`` [seeds, H, W], that of the agent's f_ψ.
+    """
+    cfg.check()
+    host, belief_params, tcfg, meta = teacher_setup(world, cfg, seeds, teacher, belief)
+    params = world.params
+    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+
+    def feedback(c):
+        if host is None:
+            return _feedback(c, params, belief_params, cfg, tcfg)[0]
+        return _feedback_host(c, host, cfg)[0]
+
+    def chunk(c, phase):
+        return _chunk(c, params, cfg, phase)
+
+    res = drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
+    belief_map, agent_map = _noise_maps(res["carry"], params, cfg.prefbias.dynamics.min_std)
+    res["belief_noise"], res["dynamics_noise"] = np.asarray(belief_map), np.asarray(agent_map)
+    return res

@@ -1,0 +1,147 @@
+"""PrefBias's loop (Algorithm 2): it runs under jit and vmap, resumes exactly, relabels, and its CLI writes its files."""
+
+import csv
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mindgap import rng
+from mindgap.algorithms import pbrl, prefbias
+from mindgap.algorithms.prefbias import prefbias_config, train
+from mindgap.cli import main
+from mindgap.envs.terrain import load_world
+from mindgap.models.prefbias_nets import posterior_reward
+from mindgap.planning.terrain import rollouts
+
+# two routes to the goal, an icy upper one and a floor lower one; the person believes ice is slippery
+WORLD = """name = "icy"
+horizon = 30
+layout = '''
+#########
+#S~~~~~G#
+#.......#
+#########
+'''
+[rewards]
+goal = 10.0
+step = -1.0
+progress = 1.0
+[beliefs.human]
+ice = { noise = 0.3 }
+"""
+
+
+@pytest.fixture(scope="module")
+def world_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("world") / "icy.toml"
+    path.write_text(WORLD)
+    return path
+
+
+@pytest.fixture(scope="module")
+def icy(world_file):
+    return load_world(str(world_file))
+
+
+def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
+    cfg = prefbias_config("fast")
+    whole = train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
+
+    saves = {"n": 0}
+    real_save = pbrl.save_pytree
+
+    def dying_save(*args, **kw):
+        real_save(*args, **kw)
+        saves["n"] += 1
+        if saves["n"] == 3:  # killed right after the third checkpoint (the first feedback round is done)
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(pbrl, "save_pytree", dying_save)
+    with pytest.raises(KeyboardInterrupt):
+        train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "killed", progress=False)
+    monkeypatch.setattr(pbrl, "save_pytree", real_save)
+    resumed = train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "killed", progress=False)
+    assert resumed["curve"] == whole["curve"]
+    np.testing.assert_array_equal(resumed["final_returns"], whole["final_returns"])
+    np.testing.assert_array_equal(resumed["belief_noise"], whole["belief_noise"])
+    assert max(r[3] for r in whole["curve"]) == cfg.queries  # the whole budget was used
+    assert whole["config"]["config"]["method"] == "prefbias"
+    # the belief map: one per seed, NaN exactly on walls, positive elsewhere; seeds differ
+    noise = whole["belief_noise"]
+    wall = np.asarray(icy.params.grid) == np.asarray(icy.params.grid)[0, 0]
+    assert noise.shape == (2, *wall.shape)
+    assert np.all(np.isnan(noise[:, wall])) and np.all(noise[:, ~wall] > 0)
+    assert not np.allclose(noise[0], noise[1])
+    other = prefbias_config("fast", queries=20)
+    with pytest.raises(ValueError, match="other settings"):
+        train(icy, other, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
+
+
+def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy):
+    cfg = prefbias_config("fast")
+    carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.params, cfg)
+    for phase in ("random", "explore"):
+        carry = prefbias._chunk(carry, icy.params, cfg, phase)
+    before = np.asarray(carry.loop.replay.reward)
+    np.testing.assert_array_equal(before[:, : cfg.chunk], np.asarray(carry.loop.replay.env_reward)[:, : cfg.chunk])
+    carry, info = prefbias._feedback(carry, icy.params, icy.belief(), cfg, cfg.teacher)
+    assert np.all(np.asarray(carry.queries) == cfg.per_round)
+    assert np.all(np.asarray(carry.prefs.count) == cfg.per_round)
+    assert np.all(np.isfinite(np.asarray(info.loss)))
+    buf, size = carry.loop.replay, int(carry.loop.replay.size[0])
+    expect = jax.vmap(posterior_reward)(carry.model.reward.mean, buf.obs, buf.act, buf.next_obs)
+    after = np.asarray(buf.reward)
+    np.testing.assert_allclose(after[:, :size], np.asarray(expect)[:, :size], rtol=1e-5, atol=1e-6)
+    assert not np.allclose(after[:, :size], before[:, :size])
+    # the first round fitted f_ψ on the buffer and centred p(φ) on it; q(φ) started there
+    psi = carry.dynamics.params[0][0]
+    np.testing.assert_array_equal(np.asarray(carry.model.belief_prior[0][0]), np.asarray(psi))
+    np.testing.assert_allclose(np.asarray(carry.model.norm.out_std), np.asarray(carry.dynamics.norm.out_std))
+    assert float(jnp.abs(carry.dynamics.norm.out_std).min()) < 0.5  # the buffer's spread, not the placeholder's 1
+
+
+def test_cli_writes_curve_summary_and_belief(world_file, tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["prefbias", "--world", str(world_file), "--fast", "--seeds", "2", "--quiet", "--out", str(out)]
+    assert main(args) == 0
+    for name in ("curve.csv", "curve.png", "trajectories.png", "belief.png", "summary.json", "checkpoint.npz"):
+        assert (out / name).stat().st_size > 0, name
+    rows = list(csv.DictReader((out / "curve.csv").open()))
+    assert [k for k in rows[0]] == ["seed", "env_steps", "return", "queries"]
+    assert {int(r["env_steps"]) for r in rows} == {500, 1000, 1500}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["method"] == "prefbias" and summary["sampler"] == "preference_disagreement"
+    assert summary["queries"] == 30 and len(summary["final_return_per_seed"]) == 2
+    assert np.isfinite(summary["belief_noise_rms_error"])
+    assert "belief.png" in capsys.readouterr().out
+    assert main(["prefbias", "--world", str(world_file), "--fast", "--sampler", "greedy", "--out", str(out)]) == 2
+    assert "unknown sampler" in capsys.readouterr().err
+    assert main(["prefbias", "--world", str(world_file), "--fast", "--prior", "flat", "--out", str(out)]) == 2
+    assert "belief_prior" in capsys.readouterr().err
+
+
+def _random_policy(k, pos):
+    return jax.random.uniform(jax.random.fold_in(k, (pos * 1000).astype(int).sum()), (2,), minval=-1, maxval=1)
+
+
+@pytest.mark.slow
+def test_prefbias_with_the_true_teacher_beats_a_random_policy_on_nav1():
+    nav1 = load_world("nav1")
+    cfg = prefbias_config(queries=200, per_round=50, total_steps=16_000, eval_every=4000)
+    res = train(nav1, cfg, seeds=2, teacher="true", progress=False)
+    learned = float(res["final_returns"].mean())
+    _, rew, _ = rollouts(jax.random.key(5), nav1.params, _random_policy, 50, jax.random.key(6))
+    random_return = float(np.asarray(rew).sum(1).mean())
+    assert learned > random_return + 10, (learned, random_return)
+
+
+def test_config_errors_are_clear():
+    with pytest.raises(ValueError, match="multiple of chunk"):
+        prefbias_config(total_steps=1234)
+    with pytest.raises(ValueError, match="unknown sampler"):
+        prefbias_config(sampler="greedy")
+    with pytest.raises(ValueError, match="unknown preset"):
+        prefbias_config("tiny")
