@@ -7,6 +7,7 @@ mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
+mindgap prefbias --world W --out DIR …   (PrefBias, Algorithm 2; see mindgap.commands.prefbias)
 mindgap study serve|check|links|export|examples …  (user studies in the browser; see mindgap.commands.study)
 """
 
@@ -37,10 +38,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
-    from .commands import learn, study, worlds
+    from .commands import learn, prefbias, study, worlds
 
     worlds.add_parser(sub)
     learn.add_parsers(sub)
+    prefbias.add_parser(sub)
     study.add_parser(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
@@ -106,6 +108,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import learn
 
             return learn.run(args)
+        if args.command == "prefbias":
+            from .commands import prefbias
+
+            return prefbias.run(args)
         return _gerel(args)
     except (ValueError, RuntimeError, FloatingPointError) as e:
         print(f"mindgap: error: {e}", file=sys.stderr)

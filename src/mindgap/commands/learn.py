@@ -45,52 +45,55 @@ def add_parsers(sub) -> None:
             p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
             p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
             p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
-        p.add_argument("--steps", type=int, default=40_000, help="environment steps per seed (default 40000)")
-        p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
-        p.add_argument("--seed", type=int, default=0, help="base seed")
-        p.add_argument("--hidden", default="64,64", help="hidden widths of actor and critics (default 64,64)")
-        d = SACConfig()
-        p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random steps before SAC updates")
-        p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
-        p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")
-        p.add_argument(
-            "--reward-scale",
-            type=float,
-            default=d.reward_scale,
-            help=f"factor on rewards in the critic target (default {d.reward_scale})",
-        )
-        p.add_argument("--out", type=Path, required=True, help="run folder (reruns resume from its checkpoint)")
-        p.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
-        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        add_run_flags(p)
+
+
+def add_run_flags(p) -> None:
+    """Flags every learning command shares: steps, seeds, the SAC settings, the run folder."""
+    p.add_argument("--steps", type=int, default=40_000, help="environment steps per seed (default 40000)")
+    p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="base seed")
+    p.add_argument("--hidden", default="64,64", help="hidden widths of actor and critics (default 64,64)")
+    d = SACConfig()
+    p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random steps before SAC updates")
+    p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
+    p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")
+    p.add_argument(
+        "--reward-scale",
+        type=float,
+        default=d.reward_scale,
+        help=f"factor on rewards in the critic target (default {d.reward_scale})",
+    )
+    p.add_argument("--out", type=Path, required=True, help="run folder (reruns resume from its checkpoint)")
+    p.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def sac_config(args: argparse.Namespace) -> SACConfig:
+    """The SAC settings of the command line."""
+    try:
+        hidden = tuple(int(x) for x in args.hidden.split(","))
+    except ValueError:
+        raise ValueError(f"--hidden must look like 128,128, got {args.hidden!r}") from None
+    return SACConfig(
+        hidden=hidden,
+        learning_starts=args.learning_starts,
+        utd=args.utd,
+        batch_size=args.batch,
+        reward_scale=args.reward_scale,
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    from .._io import atomic_write
     from ..algorithms.pbrl import method_config, train
     from ..envs.terrain import load_world
-    from ..plotting.learning import curve_stats, save_learning_curves
-    from ..plotting.terrain import save_world
 
     if getattr(args, "preferences", None):
         from ..study.offline import run_offline
 
         return run_offline(args)
     world = load_world(args.world)
-    try:
-        hidden = tuple(int(x) for x in args.hidden.split(","))
-    except ValueError:
-        raise ValueError(f"--hidden must look like 128,128, got {args.hidden!r}") from None
-    over = dict(
-        total_steps=args.steps,
-        seed=args.seed,
-        sac=SACConfig(
-            hidden=hidden,
-            learning_starts=args.learning_starts,
-            utd=args.utd,
-            batch_size=args.batch,
-            reward_scale=args.reward_scale,
-        ),
-    )
+    over = dict(total_steps=args.steps, seed=args.seed, sac=sac_config(args))
     teacher = "true"
     if args.command != "sac":
         from ..teachers.preference import TeacherConfig
@@ -120,28 +123,39 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         fresh=args.fresh,
     )
+    label = args.command if args.command == "sac" else f"{args.command} ({teacher} teacher)"
+    summary = write_outputs(args.out, world, res, label, method=args.command, teacher=teacher)
+    print(
+        f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
+        f"{summary['final_return_std']:.1f} over {args.seeds} seed(s), {summary['queries']} queries; "
+        f"curve.csv, curve.png, trajectories.png in {args.out}/"
+    )
+    return 0
+
+
+def write_outputs(out: Path, world, res: dict, label: str, **record) -> dict:
+    """curve.csv, curve.png, trajectories.png and summary.json of a finished run; returns the summary."""
+    from .._io import atomic_write
+    from ..plotting.learning import curve_stats, save_learning_curves
+    from ..plotting.terrain import save_world
+
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(["seed", "env_steps", "return", "queries"])
     for seed, step, ret, q in res["curve"]:
         w.writerow([int(seed), int(step), f"{ret:.4f}", int(q)])
-    atomic_write(args.out / "curve.csv", buf.getvalue())
-    label = args.command if args.command == "sac" else f"{args.command} ({teacher} teacher)"
-    save_learning_curves(args.out / "curve.png", {label: res["curve"]}, title=f"{world.name}")
+    atomic_write(out / "curve.csv", buf.getvalue())
+    save_learning_curves(out / "curve.png", {label: res["curve"]}, title=f"{world.name}")
     paths = [p for seed_paths in res["paths"] for p in seed_paths]
-    save_world(args.out / "trajectories.png", world.params, {label: paths}, title=f"{world.name}: {label}")
+    save_world(out / "trajectories.png", world.params, {label: paths}, title=f"{world.name}: {label}")
     final = res["final_returns"]
     summary = {
-        "method": args.command,
+        **record,
         "world": world.name,
-        "teacher": teacher,
         "final_return_mean": float(final.mean()),
+        "final_return_std": float(final.mean(1).std()),
         "final_return_per_seed": [float(x) for x in final.mean(1)],
         "queries": int(curve_stats(res["curve"])[3][-1]),
     }
-    atomic_write(args.out / "summary.json", json.dumps(summary, indent=2))
-    print(
-        f"{label} on {world.name}: final return {final.mean():.1f} ± {final.mean(1).std():.1f} over "
-        f"{args.seeds} seed(s), {summary['queries']} queries; curve.csv, curve.png, trajectories.png in {args.out}/"
-    )
-    return 0
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2))
+    return summary

@@ -1,0 +1,133 @@
+"""``mindgap prefbias``: PrefBias (Algorithm 2) on a terrain world; the outputs of ``mindgap pebble`` plus the belief.
+
+mindgap prefbias --world nav1 --teacher biased --queries 800 --steps 40000 --seeds 5 --out runs/prefbias-nav1
+
+Writes curve.csv, curve.png, trajectories.png, summary.json and belief.png: the noise the
+learned belief f_φ predicts at each cell (mean over seeds) beside the agent's dynamics
+model f_ψ and the simulated person's own table.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from ..feedback.prefbias_queries import SAMPLERS
+from .learn import add_run_flags
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("prefbias", help="PrefBias: learn the reward and the person's belief about the dynamics together")
+    p.add_argument("--world", required=True, help="a named world (nav1, nav2, d1–d4) or a world file")
+    p.add_argument(
+        "--teacher",
+        default="biased",
+        help="biased: r_H + log T_H under the belief; true: the ordinary B-Pref teacher; "
+        "study:STORE: people answering live through the study app (mindgap study serve --db STORE)",
+    )
+    p.add_argument("--answer-timeout", type=float, default=600.0, help="study teacher: seconds to wait per round")
+    p.add_argument("--belief", help="belief of a biased teacher (default: the world's first)")
+    p.add_argument("--queries", type=int, help="query budget (default 800)")
+    p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
+    p.add_argument(
+        "--sampler", default="preference_disagreement", help=f"{', '.join(SAMPLERS)} (default preference_disagreement)"
+    )
+    p.add_argument(
+        "--prior", default="dynamics", help="centre of the belief prior: dynamics (f_ψ, default) or random"
+    )
+    p.add_argument("--explore-steps", type=int, help="state-entropy pre-training steps (default 4000, as PEBBLE)")
+    p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
+    p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
+    p.add_argument(
+        "--fast", action="store_true", help="the quick preset (tiny networks, 1500 steps, 30 queries; for dry runs)"
+    )
+    add_run_flags(p)
+    p.set_defaults(steps=None, hidden=None, learning_starts=None, batch=None)  # the preset's unless given
+
+
+def run(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    import numpy as np
+
+    from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config, train
+    from ..envs.terrain import load_world
+    from ..models.prefbias_nets import table_noise_map
+    from ..plotting.terrain import save_fields
+    from ..teachers.preference import TeacherConfig
+    from .learn import sac_config, write_outputs
+
+    world = load_world(args.world)
+    preset = "fast" if args.fast else "full"
+    base = prefbias_config(preset) if args.fast else PrefBiasLoopConfig()
+    defaults = dict(
+        steps=base.total_steps,
+        hidden=",".join(str(h) for h in base.sac.hidden),
+        learning_starts=base.sac.learning_starts,
+        batch=base.sac.batch_size,
+    )
+    for name, value in defaults.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+    sac = sac_config(args)
+    over = dict(
+        total_steps=args.steps,
+        seed=args.seed,
+        sac=sac,
+        sampler=args.sampler,
+        prefbias=dataclasses.replace(base.prefbias, belief_prior=args.prior),
+        teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
+    )
+    for name, flag in (("queries", "queries"), ("per_round", "per_round"), ("explore_steps", "explore_steps")):
+        if getattr(args, flag) is not None:
+            over[name] = getattr(args, flag)
+    cfg = prefbias_config(preset, **over)
+    teacher, host = args.teacher, None
+    if teacher.startswith("study:"):
+        from ..study.live import StudyTeacher
+
+        host = StudyTeacher(teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
+    elif teacher not in ("biased", "true"):
+        raise ValueError(f"--teacher must be biased, true or study:STORE, got {teacher!r}")
+    res = train(
+        world,
+        cfg,
+        seeds=args.seeds,
+        teacher=host or teacher,
+        belief=args.belief,
+        out=args.out,
+        progress=not args.quiet,
+        fresh=args.fresh,
+    )
+    label = f"prefbias ({teacher} teacher)"
+    learned = res["belief_noise"].mean(0)  # NaN on walls
+    person = world.belief(args.belief) if teacher == "biased" else world.params
+    target = np.asarray(table_noise_map(person))
+    rms = float(np.sqrt(np.nanmean((res["belief_noise"] - target) ** 2, axis=(1, 2))).mean())
+    summary = write_outputs(
+        args.out,
+        world,
+        res,
+        label,
+        method="prefbias",
+        teacher=teacher,
+        sampler=cfg.sampler,
+        prior=cfg.prefbias.belief_prior,
+        belief_noise_rms_error=rms,
+    )
+    save_fields(
+        args.out / "belief.png",
+        world.params,
+        [
+            ("agent's dynamics model f_ψ", res["dynamics_noise"].mean(0)),
+            (f"learned belief f_φ ({args.seeds} seed(s))", learned),
+            ("the person's belief" if teacher == "biased" else "true dynamics", target),
+        ],
+        label="noise σ (cells)",
+    )
+    print(
+        f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
+        f"{summary['final_return_std']:.1f} over {args.seeds} seed(s), {summary['queries']} queries; "
+        f"belief noise RMS error {rms:.3f} cells; curve.csv, curve.png, trajectories.png, belief.png in {args.out}/"
+    )
+    return 0
+
