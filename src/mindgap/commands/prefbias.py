@@ -16,7 +16,9 @@ from .learn import add_run_flags
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("prefbias", help="PrefBias: learn the reward and the person's belief about the dynamics together")
+    p = sub.add_parser(
+        "prefbias", help="PrefBias: learn the reward and the person's belief about the dynamics together"
+    )
     p.add_argument("--world", required=True, help="a named world (nav1, nav2, d1–d4) or a world file")
     p.add_argument(
         "--teacher",
@@ -31,9 +33,7 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--sampler", default="preference_disagreement", help=f"{', '.join(SAMPLERS)} (default preference_disagreement)"
     )
-    p.add_argument(
-        "--prior", default="dynamics", help="centre of the belief prior: dynamics (f_ψ, default) or random"
-    )
+    p.add_argument("--prior", default="dynamics", help="centre of the belief prior: dynamics (f_ψ, default) or random")
     p.add_argument("--explore-steps", type=int, help="state-entropy pre-training steps (default 4000, as PEBBLE)")
     p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
     p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
@@ -130,4 +130,3 @@ def run(args: argparse.Namespace) -> int:
         f"belief noise RMS error {rms:.3f} cells; curve.csv, curve.png, trajectories.png, belief.png in {args.out}/"
     )
     return 0
-
