@@ -129,8 +129,13 @@ def _random_policy(k, pos):
 
 @pytest.mark.slow
 def test_prefbias_with_the_true_teacher_beats_a_random_policy_on_nav1():
+    """Full-size networks, 20 000 steps, 200 queries, 2 seeds (about 4 minutes on 2 CPU cores).
+
+    Measured once: seeds −98.2 and −1.9 (mean −50.0) against a random policy's −99.5; the
+    SAC oracle reaches about −0.4. The margin rests on one seed of two reaching the goal.
+    """
     nav1 = load_world("nav1")
-    cfg = prefbias_config(queries=200, per_round=50, total_steps=16_000, eval_every=4000)
+    cfg = prefbias_config(queries=200, per_round=50, total_steps=20_000, eval_every=5000)
     res = train(nav1, cfg, seeds=2, teacher="true", progress=False)
     learned = float(res["final_returns"].mean())
     _, rew, _ = rollouts(jax.random.key(5), nav1.params, _random_policy, 50, jax.random.key(6))
