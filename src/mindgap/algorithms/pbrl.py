@@ -54,8 +54,32 @@ from .sac_loop import LoopState, evaluate, loop_init, run_chunk
 METHODS = ("sac", "pebble", "drlhp")
 
 
+class Schedule:
+    """What every run config of the engine shares: the phase boundaries and their checks.
+
+    Mixed into frozen dataclasses with ``total_steps``, ``chunk``, ``eval_every``,
+    ``feedback_every``, ``explore_steps`` and ``sac`` (read by :func:`drive`).
+    """
+
+    def check_schedule(self) -> None:
+        for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
+            if getattr(self, name) % self.chunk:
+                raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")
+        if self.sac.learning_starts % self.chunk:
+            raise ValueError(f"sac.learning_starts must be a multiple of chunk ({self.chunk})")
+        if self.learning_steps() >= self.total_steps:
+            raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
+
+    def learning_steps(self) -> int:
+        """First step of the ``train`` phase (and of the first feedback round)."""
+        return self.sac.learning_starts + self.explore_steps
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
 @dataclasses.dataclass(frozen=True)
-class PbRLConfig:
+class PbRLConfig(Schedule):
     """One run of the engine (all seeds share it)."""
 
     method: str = "pebble"
@@ -97,22 +121,9 @@ class PbRLConfig:
             raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
         if self.sampler not in SAMPLERS:
             raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
-        for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
-            if getattr(self, name) % self.chunk:
-                raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")
-        if self.sac.learning_starts % self.chunk:
-            raise ValueError(f"sac.learning_starts must be a multiple of chunk ({self.chunk})")
+        self.check_schedule()
         if self.method != "sac" and (self.queries < 1 or self.per_round < 1):
             raise ValueError("queries and per_round must be at least 1")
-        if self.learning_steps() >= self.total_steps:
-            raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
-
-    def learning_steps(self) -> int:
-        """First step of the ``train`` phase."""
-        return self.sac.learning_starts + self.explore_steps
-
-    def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 def method_config(method: str, **overrides) -> PbRLConfig:

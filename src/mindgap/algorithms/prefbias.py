@@ -42,14 +42,14 @@ from ..models.prefbias_nets import belief_noise_map, posterior_reward
 from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
-from .pbrl import drive, host_answers, teacher_setup
+from .pbrl import Schedule, drive, host_answers, teacher_setup
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
 from .sac import SACConfig
 from .sac_loop import LoopState, loop_init, run_chunk
 
 
 @dataclasses.dataclass(frozen=True)
-class PrefBiasLoopConfig:
+class PrefBiasLoopConfig(Schedule):
     """One PrefBias run (all seeds share it; hashable, a static jit argument)."""
 
     method: str = "prefbias"
@@ -95,22 +95,9 @@ class PrefBiasLoopConfig:
         if self.sampler not in SAMPLERS:
             raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
         self.prefbias.check()
-        for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
-            if getattr(self, name) % self.chunk:
-                raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")
-        if self.sac.learning_starts % self.chunk:
-            raise ValueError(f"sac.learning_starts must be a multiple of chunk ({self.chunk})")
+        self.check_schedule()
         if self.queries < 1 or self.per_round < 1 or self.candidates < 1:
             raise ValueError("queries, per_round and candidates must be at least 1")
-        if self.learning_steps() >= self.total_steps:
-            raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
-
-    def learning_steps(self) -> int:
-        """First step of the ``train`` phase (and of the first feedback round)."""
-        return self.sac.learning_starts + self.explore_steps
-
-    def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
 
 
 _FAST = dict(
