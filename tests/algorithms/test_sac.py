@@ -6,7 +6,7 @@ import numpy as np
 import optax
 import pytest
 
-from mindgap.algorithms.sac import Batch, SACConfig, sac_init, sac_update, sample_action
+from mindgap.algorithms.sac import Batch, SACConfig, sac_init, sac_losses, sac_update, sample_action
 
 
 def _net(params, x):
@@ -45,7 +45,8 @@ def naive_update(state, batch, key, cfg):
         a2, lp2 = _naive_action(p.actor, batch.next_obs[b], eps_next[b])
         x2 = jnp.concatenate([batch.next_obs[b], a2])
         qmin = jnp.minimum(_net(_critic_i(p.target, 0), x2)[0], _net(_critic_i(p.target, 1), x2)[0])
-        ys.append(batch.reward[b] + cfg.gamma * (1 - batch.terminal[b]) * (qmin - alpha * lp2))
+        gamma = cfg.gamma if batch.discount is None else batch.discount[b]
+        ys.append(batch.reward[b] + gamma * (1 - batch.terminal[b]) * (qmin - alpha * lp2))
 
     def critic_loss(critic):
         total = 0.0
@@ -105,14 +106,35 @@ def test_update_matches_naive_reference(setup):
     cfg, state, batch, key = setup
     new, metrics = jax.jit(sac_update, static_argnums=3)(state, batch, key, cfg)
     actor, critic, target, log_alpha, la = naive_update(state, batch, key, cfg)
+
     def close(a, b):
         return jax.tree.map(lambda x, y: np.testing.assert_allclose(x, y, rtol=2e-4, atol=2e-5), a, b)
+
     close(new.params.critic, critic)
     close(new.params.actor, actor)
     close(new.params.target, target)
     np.testing.assert_allclose(new.params.log_alpha, log_alpha, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(metrics["actor_loss"], la, rtol=1e-4, atol=1e-5)
     assert int(new.updates) == 1
+
+
+def test_update_with_multistep_discounts_matches_naive_reference(setup):
+    cfg, state, batch, key = setup
+    batch = batch._replace(discount=jnp.array([0.99**3, 0.99, 0.99**2, 0.5]))
+    new, _ = jax.jit(sac_update, static_argnums=3)(state, batch, key, cfg)
+    _, critic, *_ = naive_update(state, batch, key, cfg)
+    jax.tree.map(lambda x, y: np.testing.assert_allclose(x, y, rtol=2e-4, atol=2e-5), new.params.critic, critic)
+    # the discounts are what the targets use (Adam's first step hides the scale of a gradient)
+    y = sac_losses(state.params, batch, key, cfg)[2]
+    y_plain = sac_losses(state.params, batch._replace(discount=None), key, cfg)[2]
+    np.testing.assert_array_equal(np.asarray(y[1]), np.asarray(y_plain[1]))  # terminal: no bootstrap either way
+    assert not np.isclose(float(y[3]), float(y_plain[3]))
+
+
+def test_config_rejects_empty_updates():
+    for bad in (dict(utd=0), dict(batch_size=0), dict(n_step=0)):
+        with pytest.raises(ValueError, match="at least 1"):
+            SACConfig(**bad)
 
 
 def test_fixed_alpha_stays_fixed(setup):

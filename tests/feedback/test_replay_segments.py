@@ -1,5 +1,6 @@
 """Replay buffer writes, relabelling only the reward column, segments that stop at episode ends."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -44,3 +45,43 @@ def test_segments_never_cross_episodes_or_terminals(key):
         assert np.all(np.diff(kept) == 1)  # consecutive transitions
         assert len({i // 5 for i in kept}) == 1  # one episode
         assert 7 not in kept[:-1]  # a terminal step can only be last
+
+
+def _nstep_reference(buf, i, n, gamma):
+    """Plain-Python n-step transition starting at slot i (written independently of the jitted code)."""
+    buf = jax.tree.map(np.asarray, buf)
+    cap, ptr = buf.obs.shape[0], int(buf.ptr)
+    stored_after = (ptr - 1 - i) % cap
+    r, last, m = 0.0, i, 0
+    for k in range(n):
+        j = (i + k) % cap
+        if k > 0 and (stored_after < k or int(buf.ep_step[j]) != int(buf.ep_step[i]) + k or bool(buf.terminal[last])):
+            break
+        r += gamma**k * float(buf.reward[j])
+        last, m = j, k + 1
+    return r, float(buf.next_obs[last, 0]), float(buf.terminal[last]), gamma**m
+
+
+def test_nstep_sums_stop_at_episode_ends_terminals_and_the_newest_entry():
+    # 20 writes into 16 slots: episodes of 4 steps, one ending in a terminal state at write 9,
+    # and the ring wrapped, so slot 3 (the newest) has nothing stored after it.
+    buf = _filled(n=20, capacity=16, terminal_at=(9,))
+    buf = buf._replace(reward=jnp.arange(16, dtype=jnp.float32) * 0.5 - 3.0)
+    b = jax.tree.map(np.asarray, replay_sample(buf, jax.random.key(1), 512, n_step=3, gamma=0.9))
+    slots = b.obs[:, 0].astype(int) % 16
+    assert len(set(slots.tolist())) == 16  # every slot checked
+    for s, r, nxt, term, disc in zip(slots, b.reward, b.next_obs[:, 0], b.terminal, b.discount):
+        want = _nstep_reference(buf, int(s), 3, 0.9)
+        np.testing.assert_allclose([float(r), float(nxt), float(term), float(disc)], want, rtol=1e-5)
+    # the cases the test is about do occur: a full 3-step sum, a cut at a terminal, one at the newest entry
+    discs = {int(s): float(d) for s, d in zip(slots, b.discount)}
+    assert np.isclose(discs[0], 0.9**3) and np.isclose(discs[9 % 16], 0.9) and np.isclose(discs[3], 0.9)
+
+
+def test_nstep_of_one_is_the_plain_sample():
+    buf = _filled(n=10)
+    k = jax.random.key(2)
+    a, b = replay_sample(buf, k, 32), replay_sample(buf, k, 32, n_step=1)
+    for x, y in zip(a[:5], b[:5]):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    assert a.discount is None

@@ -4,7 +4,8 @@ Twin critics with Polyak-averaged targets, a tanh-squashed Gaussian actor, and a
 automatically tuned entropy coefficient α (target entropy −dim(A)). One update:
 
 * critic: ``y = c·r + γ(1 − terminal)(min_i Q̄_i(s', a') − α log π(a'|s'))``, ``a' ~ π(·|s')``;
-  ``c`` the reward scale (1 by default);
+  ``c`` the reward scale (1 by default); with n-step targets ``r`` is the discounted sum of
+  up to n rewards of one episode, ``s'`` the state after the last of them and γ becomes γ^m;
   loss ``Σ_i mean (Q_i(s, a) − y)²``;
 * actor: ``mean(α log π(ã|s) − min_i Q_i(s, ã))``, ``ã ~ π(·|s)`` reparameterised;
 * α: ``mean(−log α · (log π(ã|s) + target_entropy))``;
@@ -53,9 +54,18 @@ class SACConfig:
     """Environment steps of uniformly random actions before the first update."""
     target_entropy: float | None = None
     """Entropy the tuned α aims for; None means −dim(A), the usual choice."""
+    n_step: int = 1
+    """Environment steps summed into each critic target (n-step returns, within one episode);
+    1 is plain SAC. Longer targets carry a small per-step signal (the terrain worlds'
+    progress term) past the critic's noise."""
     reward_scale: float = 1.0
     """Factor on the reward in the critic's target (Haarnoja et al. 2018a); the terrain worlds'
     ±100 terminal rewards make the critic's targets large and its greedy policy unstable."""
+
+    def __post_init__(self):
+        for name in ("utd", "batch_size", "n_step"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"SAC {name} must be at least 1, got {getattr(self, name)}")
 
 
 class SACParams(NamedTuple):
@@ -74,13 +84,18 @@ class SACState(NamedTuple):
 
 
 class Batch(NamedTuple):
-    """Transitions: obs [B, d], act [B, a], reward [B], next_obs [B, d], terminal [B] (no bootstrap)."""
+    """Transitions: obs [B, d], act [B, a], reward [B], next_obs [B, d], terminal [B] (no bootstrap).
+
+    ``discount [B]``, when given, replaces γ in the target: γ^m for a transition that sums the
+    rewards of m steps (see :func:`~mindgap.feedback.replay.replay_sample`).
+    """
 
     obs: jax.Array
     act: jax.Array
     reward: jax.Array
     next_obs: jax.Array
     terminal: jax.Array
+    discount: jax.Array | None = None
 
 
 def _optimiser(cfg: SACConfig) -> optax.GradientTransformation:
@@ -133,7 +148,8 @@ def sac_losses(params: SACParams, batch: Batch, key: jax.Array, cfg: SACConfig):
     alpha = jnp.exp(params.log_alpha)
     a_next, logp_next = sample_action(params.actor, batch.next_obs, k_next)
     q_next = jnp.min(q_values(params.target, batch.next_obs, a_next), axis=0) - alpha * logp_next
-    y = jax.lax.stop_gradient(cfg.reward_scale * batch.reward + cfg.gamma * (1.0 - batch.terminal) * q_next)
+    discount = cfg.gamma if batch.discount is None else batch.discount
+    y = jax.lax.stop_gradient(cfg.reward_scale * batch.reward + discount * (1.0 - batch.terminal) * q_next)
 
     def critic_loss(critic):
         q = q_values(critic, batch.obs, batch.act)

@@ -114,10 +114,12 @@ def run_chunk(
 
             def update(sac, k):
                 k_batch, k_pool, k_sac = jax.random.split(k, 3)
-                batch = replay_sample(replay, k_batch, cfg.batch_size)
-                if phase == "explore":
+                if phase == "explore":  # the intrinsic reward belongs to one step: no n-step sums
+                    batch = replay_sample(replay, k_batch, cfg.batch_size)
                     pool = replay_sample(replay, k_pool, 1024).next_obs
                     batch = batch._replace(reward=state_entropy_reward(batch, pool, knn))
+                else:
+                    batch = replay_sample(replay, k_batch, cfg.batch_size, cfg.n_step, cfg.gamma)
                 return sac_update(sac, batch, k_sac, cfg)[0], None
 
             sac, _ = jax.lax.scan(update, sac, jax.random.split(k_upd, cfg.utd))

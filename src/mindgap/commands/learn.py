@@ -59,6 +59,9 @@ def add_run_flags(p) -> None:
     p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
     p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")
     p.add_argument(
+        "--n-step", type=int, default=d.n_step, help=f"steps summed into each critic target (default {d.n_step})"
+    )
+    p.add_argument(
         "--reward-scale",
         type=float,
         default=d.reward_scale,
@@ -81,6 +84,7 @@ def sac_config(args: argparse.Namespace) -> SACConfig:
         utd=args.utd,
         batch_size=args.batch,
         reward_scale=args.reward_scale,
+        n_step=args.n_step,
     )
 
 

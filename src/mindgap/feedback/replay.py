@@ -66,10 +66,39 @@ def replay_add(buf: Replay, obs, act, next_obs, env_reward, reward, terminal, ep
     )
 
 
-def replay_sample(buf: Replay, key: jax.Array, batch_size: int) -> Batch:
-    """Uniform minibatch (with replacement) of the stored transitions, with the ``reward`` column."""
+def replay_sample(buf: Replay, key: jax.Array, batch_size: int, n_step: int = 1, gamma: float = 0.99) -> Batch:
+    """Uniform minibatch (with replacement) of the stored transitions, with the ``reward`` column.
+
+    With ``n_step > 1`` each sampled transition i is extended by the steps i+1, …, i+n−1 that
+    follow it in the same episode and have already been stored (the episode may end, by
+    termination or by the horizon, before that): the reward becomes Σ_k γ^k r_{i+k} over the
+    m steps taken, the next observation and terminal flag those of the last one, and
+    ``discount`` γ^m (n-step returns, Sutton & Barto 2018 §7.1; off-policy without correction,
+    as in Rainbow and SB3).
+    """
     idx = jax.random.randint(key, (batch_size,), 0, jnp.maximum(buf.size, 1))
-    return Batch(buf.obs[idx], buf.act[idx], buf.reward[idx], buf.next_obs[idx], buf.terminal[idx].astype(jnp.float32))
+    terminal = buf.terminal[idx].astype(jnp.float32)
+    if n_step == 1:
+        return Batch(buf.obs[idx], buf.act[idx], buf.reward[idx], buf.next_obs[idx], terminal)
+    cap = buf.capacity
+    newer = (buf.ptr - 1 - idx) % cap  # transitions stored after idx
+    reward, last, going = buf.reward[idx], idx, ~buf.terminal[idx]
+    steps = jnp.ones(batch_size, jnp.int32)
+    for k in range(1, n_step):
+        j = (idx + k) % cap
+        going = going & (newer >= k) & (buf.ep_step[j] == buf.ep_step[idx] + k)
+        reward = reward + jnp.where(going, gamma**k * buf.reward[j], 0.0)
+        last = jnp.where(going, j, last)
+        steps = steps + going
+        going = going & ~buf.terminal[j]
+    return Batch(
+        buf.obs[idx],
+        buf.act[idx],
+        reward,
+        buf.next_obs[last],
+        buf.terminal[last].astype(jnp.float32),
+        jnp.asarray(gamma, jnp.float32) ** steps,
+    )
 
 
 def relabel(buf: Replay, reward_fn, reward_params, chunk: int = 4096) -> Replay:
@@ -80,8 +109,10 @@ def relabel(buf: Replay, reward_fn, reward_params, chunk: int = 4096) -> Replay:
     """
     n = buf.capacity
     pad = (-n) % chunk
+
     def split(x):
         return jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1)).reshape(-1, chunk, *x.shape[1:])
+
     r = jax.lax.map(lambda xs: reward_fn(reward_params, *xs), (split(buf.obs), split(buf.act), split(buf.next_obs)))
     r = r.reshape(-1)[:n]
     filled = jnp.arange(n) < buf.size
