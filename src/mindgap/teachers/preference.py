@@ -41,7 +41,6 @@ class TeacherConfig:
 
 def segment_scores(seg: Segments, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
     """The person's score of each segment. seg [K, L, ·] → [K]."""
-    length = seg.mask.shape[-1]
 
     def step_score(o, a, o2):
         s, s2 = position(o, world_params), position(o2, world_params)
@@ -52,8 +51,14 @@ def segment_scores(seg: Segments, world_params, belief_params, cfg: TeacherConfi
         return r
 
     per_step = jax.vmap(jax.vmap(step_score))(seg.obs, seg.act, seg.next_obs)  # [K, L]
-    weights = cfg.gamma ** jnp.arange(length - 1, -1, -1, dtype=jnp.float32)
-    return jnp.sum(jnp.where(seg.mask, per_step, 0.0) * weights, axis=-1)
+    return discounted_sum(per_step, seg.mask, cfg.gamma)
+
+
+def discounted_sum(per_step: jax.Array, mask: jax.Array, gamma: float) -> jax.Array:
+    """Myopic segment score ``Σ_t γ^{L−1−t} x_t`` over the real steps: per_step, mask [K, L] → [K]."""
+    length = mask.shape[-1]
+    weights = gamma ** jnp.arange(length - 1, -1, -1, dtype=jnp.float32)
+    return jnp.sum(jnp.where(mask, per_step, 0.0) * weights, axis=-1)
 
 
 def answer(key: jax.Array, seg_a: Segments, seg_b: Segments, world_params, belief_params, cfg: TeacherConfig):
@@ -62,9 +67,21 @@ def answer(key: jax.Array, seg_a: Segments, seg_b: Segments, world_params, belie
     Returns:
         (labels [K] float32, answered [K] bool).
     """
-    k_bt, k_mistake = jax.random.split(key)
     sa = segment_scores(seg_a, world_params, belief_params, cfg)
     sb = segment_scores(seg_b, world_params, belief_params, cfg)
+    return labels_from_scores(key, sa, sb, cfg)
+
+
+def labels_from_scores(key: jax.Array, sa: jax.Array, sb: jax.Array, cfg: TeacherConfig):
+    """Bradley–Terry answers with B-Pref's knobs, given the person's scores of both sides ([K] each).
+
+    Shared by every simulated person that compares segments by a score (this module's and
+    :mod:`~mindgap.teachers.expectation`); ``cfg.gamma`` is applied when scoring.
+
+    Returns:
+        (labels [K] float32, answered [K] bool).
+    """
+    k_bt, k_mistake = jax.random.split(key)
     scale = jnp.max(jnp.abs(jnp.concatenate([sa, sb])))
     answered = jnp.ones(sa.shape, bool)
     if cfg.skip > 0:

@@ -1,0 +1,161 @@
+"""The reshaped reward of EPS (Eq. 4.6) as a learned ``reward_fn`` for :func:`~mindgap.algorithms.sac_loop.run_chunk`.
+
+Eq. 4.6 maximises ``E Σ_t γ^t [r_A + λ (u_H + H_T[s'|s,a] + H_π[a|s])]``. Its parts:
+
+* **r_A + λ(u_H + H_T)** is a reward of the transition, :func:`eps_reward`, stored in the
+  replay buffer and recomputed by :func:`~mindgap.feedback.replay.relabel` whenever u_H
+  or T_A changes (§4.3.3: "we relabel the data samples every time u_H is updated").
+* **λ H_π** is SAC's own entropy bonus: SAC maximises ``E Σ_t γ^t [c·r_t + α H_π(·|s_t)]``
+  (its critic target subtracts ``α log π(a'|s')`` and its actor minimises
+  ``α log π − Q``), so a fixed ``α = λ·c`` (``c`` = ``SACConfig.reward_scale``) gives Eq. 4.6
+  exactly, the reward scaled by ``c``: :func:`eps_sac_config`. Both entropies, and the
+  log π_H inside u_H, are densities over the squashed actions, so the tanh Jacobian of
+  H_π and that of log π_H cancel as they do in the KL of Eq. 4.4. ``λ = 0`` means
+  ``α = 0``: no entropy bonus at all, as Eq. 4.6 says.
+
+Normalisation of u_H (§4.3.3: "we simply normalize the learned rewards"): Bradley–Terry
+fixes u_H only up to an additive constant per step and a scale tied to the person's β,
+so u_H is standardised — ``(û − m)/s`` with ``m, s`` the mean and standard deviation of
+the ensemble's reward over the agent's filled replay buffer (:func:`u_norm_from_replay`),
+recomputed after each fit of u_H, before relabelling. λ then weighs a signal of unit
+spread against r_A, the same for every world.
+
+Units of H_T: a differential entropy depends on the units of s'. Here it is measured in
+the world's cells, the units of the exact densities log T_A, log T_H of the terrain
+worlds (:func:`~mindgap.envs.terrain.log_prob_pos`): T_A models the observation in
+[−1, 1]², and ``size/2`` cells per observation unit converts. A constant in H_T acts as
+a per-step bonus or cost, which matters in worlds whose episodes end; ``h_shift`` is
+subtracted from H_T (0 keeps Eq. 4.6 as written; :func:`entropy_mean_from_replay` gives
+the buffer mean, to centre it as u_H is centred).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ..envs.terrain import TerrainParams, TerrainState, position, reward
+from ..feedback.replay import Replay, relabel
+from ..models.agent_dynamics import dynamics_entropy
+from ..models.gaussian_dynamics import DynamicsModel
+from ..models.mlp import Params
+from ..models.reward_ensemble import ensemble_reward
+from .sac import SACConfig
+
+
+class EPSRewardParams(NamedTuple):
+    """What :func:`eps_reward` reads (a pytree: it is ``reward_params`` of ``run_chunk`` and ``relabel``).
+
+    Attributes:
+        world: the true world (r_A, and the cell size that sets the units of H_T).
+        u_params: the reward ensemble's members (u_H before normalisation).
+        u_mean, u_std: normalisation of u_H (:func:`u_norm_from_replay`).
+        dynamics: T_A.
+        min_std: T_A's standard-deviation floor (``DynamicsConfig.min_std``).
+        h_shift: subtracted from H_T (0: Eq. 4.6 as written).
+        lam: λ, the reconciliation factor.
+    """
+
+    world: TerrainParams
+    u_params: Params
+    u_mean: jax.Array
+    u_std: jax.Array
+    dynamics: DynamicsModel
+    min_std: jax.Array
+    h_shift: jax.Array
+    lam: jax.Array
+
+
+def eps_reward_params(
+    world: TerrainParams,
+    u_params: Params,
+    dynamics: DynamicsModel,
+    lam: float,
+    *,
+    min_std: float,
+    u_norm: tuple = (0.0, 1.0),
+    h_shift: float = 0.0,
+) -> EPSRewardParams:
+    """Assemble :class:`EPSRewardParams` (scalars become float32 leaves)."""
+
+    def f(x):
+        return jnp.asarray(x, jnp.float32)
+
+    return EPSRewardParams(world, u_params, f(u_norm[0]), f(u_norm[1]), dynamics, f(min_std), f(h_shift), f(lam))
+
+
+def cells_per_obs_unit(world: TerrainParams) -> jax.Array:
+    """[2] cells per unit of observation along (x, y): the observation maps the map onto [−1, 1]²."""
+    h, w = world.grid.shape
+    return jnp.array([w, h], jnp.float32) / 2.0
+
+
+def world_reward(world: TerrainParams, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
+    """r_A of transitions given as observations: [B, ·] → [B] (the world's reward depends on positions only)."""
+
+    def one(o, a, o2):
+        zero = jnp.zeros((), jnp.int32)
+        s, s2 = position(o, world), position(o2, world)
+        return reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world)
+
+    return jax.vmap(one)(obs, act, next_obs)
+
+
+def normalised_u(params: EPSRewardParams, obs, act, next_obs) -> jax.Array:
+    """u_H standardised (§4.3.3): [B, ·] → [B]."""
+    return (ensemble_reward(params.u_params, obs, act, next_obs) - params.u_mean) / params.u_std
+
+
+def environment_entropy(params: EPSRewardParams, obs, act) -> jax.Array:
+    """H_T[s'|s,a] of T_A in cells, less ``h_shift``: [B, ·] → [B]."""
+    h = dynamics_entropy(params.dynamics, obs, act, params.min_std, cells_per_obs_unit(params.world))
+    return h - params.h_shift
+
+
+def reshape(r_a: jax.Array, u_h: jax.Array, h_t: jax.Array, lam) -> jax.Array:
+    """r_A + λ (u_H + H_T): the part of Eq. 4.6 that is a reward (λ H_π is SAC's, see module docstring)."""
+    return r_a + lam * (u_h + h_t)
+
+
+def eps_reward(params: EPSRewardParams, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
+    """The reward EPS stores for SAC: ``r_A + λ (u_H + H_T)`` (Eq. 4.6). obs, act, next_obs [B, ·] → [B].
+
+    A module-level function, so that ``run_chunk(..., reward_fn=eps_reward)`` compiles once.
+    """
+    r_a = world_reward(params.world, obs, act, next_obs)
+    return reshape(r_a, normalised_u(params, obs, act, next_obs), environment_entropy(params, obs, act), params.lam)
+
+
+def eps_sac_config(base: SACConfig, lam: float) -> SACConfig:
+    """``base`` with a fixed entropy coefficient α = λ · reward_scale: SAC's H_π becomes Eq. 4.6's λ H_π."""
+    if lam < 0:
+        raise ValueError(f"λ must be non-negative, got {lam}")
+    return dataclasses.replace(base, alpha=float(lam) * base.reward_scale)
+
+
+def _filled_stats(values: jax.Array, buf: Replay) -> tuple[jax.Array, jax.Array]:
+    filled = jnp.arange(buf.capacity) < buf.size
+    n = jnp.maximum(buf.size, 1)
+    mean = jnp.sum(jnp.where(filled, values, 0.0)) / n
+    var = jnp.sum(jnp.where(filled, (values - mean) ** 2, 0.0)) / n
+    return mean, jnp.sqrt(var)
+
+
+def u_norm_from_replay(u_params: Params, buf: Replay, eps: float = 1e-6) -> tuple[jax.Array, jax.Array]:
+    """(mean, std) of the ensemble's u_H over the filled part of the buffer; std at least ``eps``."""
+    u = relabel(buf, ensemble_reward, u_params).reward
+    mean, std = _filled_stats(u, buf)
+    return mean, jnp.maximum(std, eps)
+
+
+def entropy_mean_from_replay(params: EPSRewardParams, buf: Replay) -> jax.Array:
+    """Mean H_T (cells, before ``h_shift``) over the filled part of the buffer: a value for ``h_shift``."""
+
+    def h(p, obs, act, next_obs):
+        del next_obs
+        return environment_entropy(p._replace(h_shift=jnp.zeros_like(p.h_shift)), obs, act)
+
+    return _filled_stats(relabel(buf, h, params).reward, buf)[0]

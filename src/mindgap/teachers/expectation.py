@@ -1,0 +1,111 @@
+"""The simulated person who says which of two segments is *more expected* (SPEC §4, §4.3.3).
+
+The person scores a segment by how likely they find it under their own model of the
+agent — the believed dynamics T_H and the expected policy π_H:
+
+    S(σ) = Σ_t γ^{L−1−t} [log T_H(s_{t+1} | s_t, a_t) + log π_H(a_t | s_t)],
+
+which is Σ_t u_H(s_t, a_t) for the surrogate reward u_H of §4.3.3, and answers with
+Bradley–Terry probability ``σ(β (S₁ − S₂))`` (the expectation preference of §4.3.3,
+Christiano et al. 2017). The B-Pref knobs (myopia ``gamma``, ``mistake``, ``skip``,
+``equal``) act exactly as for the preference teacher: both share
+:func:`~mindgap.teachers.preference.labels_from_scores` and
+:class:`~mindgap.teachers.preference.TeacherConfig`.
+
+Choices:
+
+* log T_H is the terrain world's exact density (:func:`~mindgap.envs.terrain.log_prob_pos`)
+  under the person's dynamics table — a point-mass probability when the agent did not
+  move, a density per cell² otherwise, as for the preference teacher.
+* π_H is the SAC policy of :mod:`~mindgap.teachers.expected_policy`; its density is over
+  actions in (−1, 1)², the tanh Jacobian included, so that u_H and SAC's policy entropy
+  (also over squashed actions) are measured alike and their Jacobian terms cancel in Eq. 4.6.
+* ``cfg.log_t_floor`` floors each of the two terms per step, so that one step the person
+  finds (nearly) impossible cannot decide a comparison alone.
+* ``cfg.use_belief`` does not apply: an expectation is always judged under a model of the
+  dynamics. A person without bias is the same teacher with the true table
+  (``belief = world.params``) and the π_H trained under it.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from ..envs.terrain import TerrainParams, TerrainWorld, log_prob_pos, position
+from ..feedback.segments import Segments
+from ..models.mlp import Params
+from .expected_policy import ExpectedPolicyConfig, expected_log_prob, expected_policy
+from .preference import TeacherConfig, discounted_sum, labels_from_scores
+
+
+class ExpectationTeacher(NamedTuple):
+    """The person's model of the agent, as arrays (pass it into jitted code like any pytree).
+
+    Attributes:
+        belief: the world under the person's dynamics table T_H.
+        policy: actor parameters of π_H (:func:`~mindgap.algorithms.sac.actor_dist` reads them).
+    """
+
+    belief: TerrainParams
+    policy: Params
+
+
+def expectation_teacher(
+    world: TerrainWorld,
+    belief: str | None = None,
+    *,
+    unbiased: bool = False,
+    policy_cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(),
+    cache_dir=None,
+) -> ExpectationTeacher:
+    """The simulated person of ``world``: belief ``belief`` (default the world's first), π_H from the cache.
+
+    Args:
+        unbiased: the person knows the true dynamics (Fig. 29); ``belief`` is then ignored.
+        policy_cfg: how π_H is trained when the cache does not hold it.
+        cache_dir: cache root (see :func:`~mindgap.teachers.expected_policy.cache_root`).
+    """
+    params = world.params if unbiased else world.belief(belief)
+    return ExpectationTeacher(params, expected_policy(params, policy_cfg, cache_dir))
+
+
+def step_log_likelihood(teacher: ExpectationTeacher, obs, act, next_obs, floor: float) -> jax.Array:
+    """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, act, next_obs [..., 2] → [...]."""
+
+    def one(o, a, o2):
+        s, s2 = position(o, teacher.belief), position(o2, teacher.belief)
+        log_t = jnp.maximum(log_prob_pos(teacher.belief, s, a, s2), floor)
+        log_pi = jnp.maximum(expected_log_prob(teacher.policy, o, a), floor)
+        return log_t + log_pi
+
+    batch = obs.shape[:-1]
+    flat = jax.vmap(one)(obs.reshape(-1, 2), act.reshape(-1, 2), next_obs.reshape(-1, 2))
+    return flat.reshape(batch)
+
+
+@partial(jax.jit, static_argnames=("cfg",))
+def segment_scores(seg: Segments, teacher: ExpectationTeacher, cfg: TeacherConfig) -> jax.Array:
+    """The person's score of each segment (how expected it is): seg [K, L, ·] → [K].
+
+    Jitted on its own (the exact densities take seconds to compile), so that host code,
+    and :func:`answer` called outside jit, reuse one compiled program per shape.
+    """
+    per_step = step_log_likelihood(teacher, seg.obs, seg.act, seg.next_obs, cfg.log_t_floor)
+    return discounted_sum(per_step, seg.mask, cfg.gamma)
+
+
+def answer(key: jax.Array, seg_a: Segments, seg_b: Segments, teacher: ExpectationTeacher, cfg: TeacherConfig):
+    """Which of each pair is more expected: 1 = first, 0 = second, 0.5 = equal; and which were answered.
+
+    Jittable (``cfg`` static) and vmappable over seeds.
+
+    Returns:
+        (labels [K] float32, answered [K] bool).
+    """
+    k = seg_a.mask.shape[0]
+    both = segment_scores(jax.tree.map(lambda a, b: jnp.concatenate([a, b]), seg_a, seg_b), teacher, cfg)
+    return labels_from_scores(key, both[:k], both[k:], cfg)  # scored in one batch: one compiled density

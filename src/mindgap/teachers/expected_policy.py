@@ -1,0 +1,154 @@
+"""The simulated person's expected policy π_H for the terrain worlds (SPEC §4), trained once and cached.
+
+SPEC §4: π_H is "soft-optimal for r_H under T_H (for terrain worlds, a SAC policy trained
+in the belief world; cache it)". It is therefore SAC — the maximum-entropy, i.e. soft,
+optimum — trained on the world's reward with the person's dynamics table (the person's
+reward is the world's, as in the dissertation's d1–d4: only the belief about the dynamics
+differs). A policy from value iteration on the discretised belief world would give an
+action distribution over the 16 compass actions only, with no density over continuous
+actions, which the score of :mod:`~mindgap.teachers.expectation` and the explicability
+score (Eq. 4.4) need; SAC's tanh-Gaussian actor has one (:func:`expected_log_prob`).
+
+SAC on the sparse-goal terrain worlds fails on some seeds (README: 1–3 of 5 reach the
+goal in 30 000 steps). :func:`train_expected_policy` therefore trains ``seeds`` seeds in
+one vmapped program and keeps the one whose greedy policy earns the most in the belief
+world — the person's expectation of a competent agent, not of one that idles.
+
+Training costs minutes, so :func:`expected_policy` stores the actor under
+``<cache>/expected_policy/<hash>.npz``; the hash covers every array of the belief world
+(layout, rewards, the person's dynamics table, horizon) and the training configuration,
+so any change of world, belief or configuration trains anew. The cache folder is
+``$MINDGAP_CACHE`` or ``~/.cache/mindgap`` unless given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import rng
+from ..algorithms.sac import SACConfig, actor_dist
+from ..checkpoint import load_pytree, save_pytree
+from ..envs.terrain import TerrainParams
+from ..models.mlp import Params, init_mlp
+from ..models.squashed import squashed_log_prob
+
+CACHE_VERSION = 1
+"""Part of every cache key: raise it when the stored format or the training changes meaning."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ExpectedPolicyConfig:
+    """How π_H is trained (every field enters the cache key)."""
+
+    total_steps: int = 30_000
+    """Environment steps per seed."""
+    chunk: int = 1000
+    """Steps per jitted chunk (``total_steps`` and ``sac.learning_starts`` are multiples of it)."""
+    seeds: int = 5
+    """Seeds trained side by side; the best in the belief world is kept."""
+    eval_episodes: int = 20
+    """Greedy episodes that rank the seeds."""
+    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=5000)
+    """SAC of π_H; 5000 random steps helped SAC find the goal of d1 most often (README)."""
+    seed: int = 0
+    """Base seed."""
+
+    @classmethod
+    def fast(cls) -> ExpectedPolicyConfig:
+        """A few hundred steps of a tiny network: for tests and smoke runs, not for experiments."""
+        return cls(total_steps=200, chunk=100, seeds=1, sac=SACConfig(hidden=(8,), learning_starts=0, batch_size=32))
+
+    def check(self) -> None:
+        if self.total_steps % self.chunk or self.sac.learning_starts % self.chunk:
+            raise ValueError(f"total_steps and sac.learning_starts must be multiples of chunk ({self.chunk})")
+        if self.sac.learning_starts >= self.total_steps:
+            raise ValueError("sac.learning_starts leaves no training steps")
+        if self.seeds < 1 or self.eval_episodes < 1:
+            raise ValueError("seeds and eval_episodes must be at least 1")
+
+
+def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
+    """log π_H(a|s) of the person's expected policy (a tanh-Gaussian density over actions): [..., ·] → [...]."""
+    mean, log_std = actor_dist(actor, obs)
+    return squashed_log_prob(mean, log_std, act)
+
+
+def cache_root(cache_dir: str | Path | None = None) -> Path:
+    """``cache_dir``, else ``$MINDGAP_CACHE``, else ``~/.cache/mindgap``."""
+    if cache_dir is not None:
+        return Path(cache_dir)
+    return Path(os.environ.get("MINDGAP_CACHE", Path.home() / ".cache" / "mindgap")).expanduser()
+
+
+def cache_key(belief_params: TerrainParams, cfg: ExpectedPolicyConfig) -> str:
+    """Hash of the belief world's arrays (shapes and dtypes included) and of the training configuration."""
+    h = hashlib.sha256(f"expected-policy v{CACHE_VERSION}".encode())
+    for leaf in jax.tree.leaves(belief_params):
+        a = np.asarray(leaf)
+        h.update(f"{a.dtype}{a.shape}".encode())
+        h.update(a.tobytes())
+    h.update(json.dumps(dataclasses.asdict(cfg), sort_keys=True).encode())
+    return h.hexdigest()[:20]
+
+
+def _actor_template(cfg: ExpectedPolicyConfig) -> Params:
+    return init_mlp(jax.random.key(0), (2, *cfg.sac.hidden, 4))
+
+
+def train_expected_policy(belief_params: TerrainParams, cfg: ExpectedPolicyConfig) -> tuple[Params, np.ndarray]:
+    """SAC on the belief world's own reward, ``cfg.seeds`` seeds at once; the best seed's actor.
+
+    Returns:
+        (actor parameters, mean greedy return of every seed in the belief world [seeds]; NaN
+        for a single seed, which is not evaluated).
+    """
+    from ..algorithms.sac_loop import evaluate, loop_init, run_chunk
+
+    cfg.check()
+    keys = jax.random.split(rng.key(cfg.seed), cfg.seeds)
+    init = jax.jit(jax.vmap(lambda k, p: loop_init(k, p, cfg.sac, cfg.total_steps), (0, None)))
+    loop = init(keys, belief_params)
+    for start in range(0, cfg.total_steps, cfg.chunk):
+        phase = "random" if start < cfg.sac.learning_starts else "train"
+        loop = jax.vmap(lambda ls: run_chunk(ls, belief_params, None, n_steps=cfg.chunk, cfg=cfg.sac, phase=phase))(
+            loop
+        )
+    actors = [jax.tree.map(lambda x, i=i: x[i], loop.sac.params.actor) for i in range(cfg.seeds)]
+    if cfg.seeds == 1:
+        return actors[0], np.full(1, np.nan)  # nothing to rank
+    eval_keys = jax.random.split(rng.key(cfg.seed + 1), cfg.seeds)
+    # one seed at a time: the compiled rollouts of an unbatched actor serve every seed
+    returns = np.array(
+        [float(evaluate(k, a, belief_params, cfg.eval_episodes)[0].mean()) for k, a in zip(eval_keys, actors)]
+    )
+    return actors[int(np.argmax(returns))], returns
+
+
+def expected_policy(
+    belief_params: TerrainParams, cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(), cache_dir=None
+) -> Params:
+    """π_H's actor for the person whose view of the world is ``belief_params``: from the cache, else trained and stored.
+
+    Args:
+        belief_params: the world under the person's dynamics table (``world.belief(name)``;
+            ``world.params`` for a person who knows the true dynamics).
+        cfg: training configuration (part of the cache key).
+        cache_dir: cache root; None uses :func:`cache_root`.
+    """
+    path = cache_root(cache_dir) / "expected_policy" / f"{cache_key(belief_params, cfg)}.npz"
+    template = _actor_template(cfg)
+    if path.exists():
+        actor, _ = load_pytree(path, template)
+        return actor
+    actor, returns = train_expected_policy(belief_params, cfg)
+    actor = jax.tree.map(lambda t, a: jnp.asarray(a, t.dtype), template, actor)
+    save_pytree(path, actor, returns=np.asarray(returns), config=json.dumps(dataclasses.asdict(cfg)))
+    return actor
