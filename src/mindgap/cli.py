@@ -20,7 +20,7 @@ from dataclasses import replace
 from pathlib import Path
 
 DOMAINS = ("grid7", "coffee")
-EXPERIMENTS = ("table1", "coffee")
+EXPERIMENTS = ("table1", "coffee", "nav", "priors", "sampling")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -129,6 +129,10 @@ def _reproduce(args) -> int:
         from .experiments import coffee_cli
 
         return coffee_cli.reproduce(args, _shard(args.shard))
+    if args.name in ("nav", "priors", "sampling"):
+        from .experiments import prefbias_cli
+
+        return prefbias_cli.reproduce(args)
     if args.participants is not None:
         raise ValueError("--participants belongs to the coffee study")
     cfg = table1.preset("fast" if args.fast else "full")

@@ -1,0 +1,548 @@
+"""What the PrefBias experiments ``nav``, ``priors`` and ``sampling`` share (dissertation §3.4).
+
+* **Learners** on one schedule: a PrefBias loop (:mod:`~mindgap.algorithms.prefbias`) and
+  the PEBBLE and SAC runs of :mod:`~mindgap.algorithms.pbrl` that copy its steps, chunks,
+  evaluation, SAC settings, rounds, segments and exploration, so that methods differ only
+  in how they learn the reward. Presets ``fast`` (tiny; tests and dry runs) and ``full``
+  (§3.4: 30 000 steps, 80 queries a round, the rest the algorithms' defaults).
+* **Jobs** in a :class:`~._runfolder.RunFolder`: ``WORLD/reference`` (a uniformly random
+  policy's return and the planning check's routes) and one job per learner, all seeds
+  vmapped inside one call of the existing ``train``. A finished job is one JSON record;
+  an unfinished one resumes from its engine checkpoint under ``train/``.
+* **Metrics**: the normalised score, the route each seed takes, the errors of the learned
+  belief and reward; **reports**: result rows, curve rows, markdown tables, bar charts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import time
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import rng
+from .._io import atomic_write
+from ..algorithms import pbrl
+from ..algorithms import prefbias as prefbias_alg
+from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
+from ..envs.terrain import load_world, observe
+from ..envs.terrain.dynamics import sample_next
+from ..envs.terrain.layout import GOAL, PIT, WALL
+from ..envs.terrain.params import TerrainState
+from ..envs.terrain.world import reward as true_reward
+from ..models.prefbias_nets import posterior_reward, table_noise_map
+from ..models.reward_ensemble import RewardConfig, ensemble_reward
+from ..planning.terrain import compass_actions, rollouts, route_stats
+from ..planning.terrain_check import check_world
+from ._runfolder import RunFolder
+
+# ---------------------------------------------------------------------------------------
+# configurations
+
+
+@dataclasses.dataclass(frozen=True)
+class Learners:
+    """The three learners of an experiment, on one schedule (the query budget is set per job)."""
+
+    prefbias: PrefBiasLoopConfig
+    pebble: pbrl.PbRLConfig
+    sac: pbrl.PbRLConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class ReferenceConfig:
+    """The per-world reference job: a random policy and the planning check (:func:`check_world`)."""
+
+    random_episodes: int = 100
+    """Episodes of the uniformly random policy (the 0 of the normalised score)."""
+    plan_resolution: int = 4
+    """Sub-cells per cell side of the planning check."""
+    plan_rollouts: int = 200
+    """Rollouts of each planned route."""
+    seed: int = 0
+
+
+def _schedule(pb: PrefBiasLoopConfig) -> dict:
+    """The fields of a PrefBias run that its PEBBLE and SAC counterparts copy."""
+    names = ("total_steps", "chunk", "eval_every", "eval_episodes", "sac", "seed", "teacher")
+    return {n: getattr(pb, n) for n in names}
+
+
+def learners(preset: str) -> Learners:
+    """``full``: PrefBias's defaults with 30 000 steps and 80 queries a round (as PEBBLE's
+    measured nav runs); ``fast``: :func:`prefbias_config` ``("fast")`` — 1500 steps, 30 queries,
+    tiny networks — and a small reward ensemble for PEBBLE."""
+    if preset == "full":
+        pb = prefbias_config("full", total_steps=30_000, per_round=80)
+        reward = RewardConfig()
+    elif preset == "fast":
+        pb = prefbias_config("fast")
+        reward = RewardConfig(hidden=(16, 16), batch_size=16, updates=20)
+    else:
+        raise ValueError(f"unknown preset {preset!r}: use 'fast' or 'full'")
+    rounds = dict(
+        queries=pb.queries,
+        per_round=pb.per_round,
+        feedback_every=pb.feedback_every,
+        segment=pb.segment,
+        explore_steps=pb.explore_steps,
+        reward=reward,
+    )
+    return Learners(
+        prefbias=pb,
+        pebble=pbrl.method_config("pebble", **_schedule(pb), **rounds),
+        sac=pbrl.method_config("sac", **_schedule(pb)),
+    )
+
+
+# ---------------------------------------------------------------------------------------
+# jobs
+
+
+class Job(NamedTuple):
+    """One checkpointed unit of work.
+
+    Attributes:
+        key: its name in the run folder, ``WORLD/NAME``.
+        world: a named world or world file.
+        method: ``reference``, ``sac``, ``pebble`` or ``prefbias``.
+        label: legend and table label.
+        cfg: :class:`ReferenceConfig`, :class:`~mindgap.algorithms.pbrl.PbRLConfig` or
+            :class:`~mindgap.algorithms.prefbias.PrefBiasLoopConfig`.
+        tags: columns this job adds to every CSV row (e.g. queries, prior, sampler).
+    """
+
+    key: str
+    world: str
+    method: str
+    label: str
+    cfg: object
+    tags: dict
+
+
+def reference_job(world: str, cfg: ReferenceConfig) -> Job:
+    return Job(f"{world}/reference", world, "reference", "reference", cfg, {})
+
+
+def prefbias_job(world: str, cfg: PrefBiasLoopConfig, label: str, name: str, **tags) -> Job:
+    """A PrefBias job; ``tags`` are the settings that distinguish it (for the CSV rows)."""
+    return Job(f"{world}/{name}", world, "prefbias", label, cfg, {"queries": cfg.queries, **tags})
+
+
+def oracle_job(world: str, learn: Learners) -> Job:
+    return Job(f"{world}/sac", world, "sac", "SAC (oracle)", learn.sac, {"queries": 0})
+
+
+def pebble_job(world: str, learn: Learners, queries: int) -> Job:
+    cfg = dataclasses.replace(learn.pebble, queries=queries)
+    return Job(f"{world}/pebble-q{queries}", world, "pebble", f"PEBBLE ({queries} queries)", cfg, {"queries": queries})
+
+
+def run_jobs(
+    folder: RunFolder, jobs: list[Job], seeds: int, *, fresh: bool, progress: bool, assemble_only: bool
+) -> dict[str, dict]:
+    """Each job's record, computing (or resuming) the unfinished ones unless ``assemble_only``."""
+    records = {}
+    for i, job in enumerate(jobs):
+        rec = folder.done(job.key)
+        if rec is None and not assemble_only:
+            t0 = time.perf_counter()
+            world = load_world(job.world)
+            if job.method == "reference":
+                rec = _reference(world, job.cfg)
+            else:
+                out = folder.root / "train" / job.key.replace("/", "__")
+                rec = _learn(world, job, seeds, out, fresh=fresh, progress=progress)
+            rec.update(key=job.key, world=job.world, method=job.method, label=job.label, tags=job.tags)
+            rec["seconds"] = time.perf_counter() - t0
+            folder.save(job.key, rec)
+            if progress:
+                what = f"final return {_pm(rec['final'])}" if "final" in rec else f"random {rec['random_return']:.1f}"
+                print(f"[{i + 1}/{len(jobs)}] {job.key}: {what} ({rec['seconds']:.0f} s)", flush=True)
+        if rec is not None:
+            records[job.key] = rec
+    return records
+
+
+def _random_action(key, pos):
+    """A uniformly random action seeded by the position's bits.
+
+    Positions almost never repeat, so each step draws afresh; a robot stuck in sand stays
+    put and tries the same push again, as a random policy with memoryless draws would not.
+    """
+    bits = jax.lax.bitcast_convert_type(pos, jnp.int32)
+    return jax.random.uniform(jax.random.fold_in(key, bits[0] * 7919 + bits[1]), (2,), minval=-1.0, maxval=1.0)
+
+
+def _reference(world, cfg: ReferenceConfig) -> dict:
+    k_rand, k_pol = jax.random.split(rng.key(cfg.seed))
+    _, rew, _ = rollouts(k_rand, world.params, _random_action, cfg.random_episodes, k_pol)
+    ret = np.asarray(rew).sum(1)
+    chk = check_world(world, n=cfg.plan_resolution, count=cfg.plan_rollouts, seed=cfg.seed)
+    return {
+        "random_return": float(ret.mean()),
+        "random_return_std": float(ret.std()),
+        "plan_return": chk.reference_return,
+        "optimal": chk.true._asdict(),
+        "expected": None if chk.expected is None else chk.expected._asdict(),
+        "belief": chk.belief,
+    }
+
+
+def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: bool) -> dict:
+    """Train every seed of one learner (vmapped, checkpointed in ``out``) and measure it."""
+    kw = dict(seeds=seeds, out=out, progress=progress, fresh=fresh)
+    if job.method == "prefbias":
+        res = prefbias_alg.train(world, job.cfg, teacher="biased", **kw)
+        fn, params = posterior_reward, res["carry"].model.reward.mean
+    else:
+        res = pbrl.train(world, job.cfg, teacher="true" if job.method == "sac" else "biased", **kw)
+        fn, params = ensemble_reward, res["carry"].reward.params
+    final = np.asarray(res["final_returns"], np.float64)
+    if not np.all(np.isfinite(final)):
+        raise FloatingPointError(f"{job.key}: non-finite returns; the run diverged")
+    rec = {
+        "seeds": seeds,
+        "curve": [[int(s), int(t), float(r), int(q)] for s, t, r, q in res["curve"]],
+        "final": [float(x) for x in final.mean(1)],
+        "final_episodes": int(final.shape[1]),
+        "paths": [[np.round(np.asarray(p, np.float64), 4).tolist() for p in seed] for seed in res["paths"]],
+        "routes": [route_of(world, paths) for paths in res["paths"]],
+        "reward_error": None if job.method == "sac" else reward_error(world, fn, params).tolist(),
+    }
+    if job.method == "prefbias":
+        person = np.asarray(table_noise_map(world.belief()))
+        rec["belief_error"] = noise_rms_error(res["belief_noise"], person).tolist()
+        rec["dynamics_error"] = noise_rms_error(res["dynamics_noise"], person).tolist()
+        rec["belief_map"] = _nan_to_none(res["belief_noise"].mean(0))  # NaN on walls in every seed
+        rec["dynamics_map"] = _nan_to_none(res["dynamics_noise"].mean(0))
+    return rec
+
+
+def _nan_to_none(a) -> list:
+    return [[None if not np.isfinite(x) else round(float(x), 5) for x in row] for row in np.asarray(a)]
+
+
+def map_array(rows) -> np.ndarray:
+    """A map stored by a record (None on walls) back as an array with NaN."""
+    return np.array([[np.nan if x is None else x for x in row] for row in rows], np.float64)
+
+
+# ---------------------------------------------------------------------------------------
+# metrics
+
+
+MIN_GAP = 1.0
+"""The oracle must beat the random policy by at least this (a step's reward) to normalise by it."""
+
+
+def normalised(returns, random_return: float, oracle_return: float) -> np.ndarray:
+    """``(R − R_random) / (R_oracle − R_random)``: 0 a uniformly random policy, 1 the SAC oracle.
+
+    NaN where the oracle beats the random policy by less than :data:`MIN_GAP` (an oracle
+    that has learned nothing, as in the ``fast`` presets, gives no scale).
+    """
+    gap = oracle_return - random_return
+    r = np.asarray(returns, np.float64)
+    return (r - random_return) / gap if gap >= MIN_GAP else np.full_like(r, np.nan)
+
+
+def noise_rms_error(learned: np.ndarray, person: np.ndarray) -> np.ndarray:
+    """Per seed, RMS over passable cells of the learned noise map minus the person's (cells).
+
+    ``learned`` [seeds, H, W] (NaN on walls, :func:`~mindgap.models.prefbias_nets.belief_noise_map`),
+    ``person`` [H, W] (:func:`~mindgap.models.prefbias_nets.table_noise_map` of the person's
+    belief). The ``belief_noise_rms_error`` of ``mindgap prefbias``.
+    """
+    return np.sqrt(np.nanmean((np.asarray(learned) - person) ** 2, axis=(1, 2)))
+
+
+def route_of(world, paths: list) -> dict:
+    """The route one seed's greedy rollouts take: goal rate, terrain shares, pit distance, and
+    ``better`` — whether it is the truly better route of the world's ``[expect]`` entries.
+
+    * ``true_prefers = "ice"`` (nav1): most rollouts reach the goal with more steps on ice
+      than on sand — the icy corridor;
+    * ``wider_berth`` (nav2): most rollouts reach the goal and their mean distance to the pit
+      is nearer the planned optimal route's than the route the person expects (filled in by
+      :func:`better_route` from the reference job);
+    * otherwise ``None``.
+
+    Each rollout goes through :func:`~mindgap.planning.terrain.route_stats` on its own, padded
+    to the horizon (one array shape per world, whatever the number of rollouts), and the
+    results are pooled as ``route_stats`` pools rollouts: terrain shares over all steps taken,
+    goal rate and pit distance averaged over rollouts.
+    """
+    horizon = int(world.params.horizon)
+    per = []
+    for p in paths:
+        p = np.asarray(p, np.float32)[: horizon + 1]
+        pos = np.repeat(p[-1:], horizon + 1, 0)
+        pos[: len(p)] = p
+        alive = np.arange(horizon) < len(p) - 1
+        per.append(route_stats(world.params, pos[None], np.zeros((1, horizon), np.float32), alive[None]))
+    steps = np.array([st.steps for st in per])
+    weight = steps / max(steps.sum(), 1.0)
+    pit = float(np.mean([st.pit_mean for st in per]))
+    route = {
+        "goal": float(np.mean([st.success for st in per])),
+        "ice": float(weight @ [st.ice for st in per]),
+        "sand": float(weight @ [st.sand for st in per]),
+        "pit_mean": pit if pit < 1e5 else None,  # no pit in the world
+    }
+    want = world.expect.get("true_prefers")
+    if want in ("ice", "sand"):
+        other = "sand" if want == "ice" else "ice"
+        route["better"] = bool(route["goal"] >= 0.5 and route[want] > route[other])
+    else:
+        route["better"] = None
+    return route
+
+
+def better_route(route: dict, reference: dict | None) -> bool | None:
+    """``route["better"]``, or for worlds judged by pit distance, the comparison with the planned routes."""
+    if route["better"] is not None or reference is None or route["pit_mean"] is None:
+        return route["better"]
+    expected = reference.get("expected")
+    if expected is None:
+        return None
+    to_opt = abs(route["pit_mean"] - reference["optimal"]["pit_mean"])
+    to_exp = abs(route["pit_mean"] - expected["pit_mean"])
+    return bool(route["goal"] >= 0.5 and to_opt < to_exp)
+
+
+def _passable_grid(params, k: int = 3) -> np.ndarray:
+    """[N, 2] positions, k×k per cell that is neither wall nor goal nor pit (where episodes run)."""
+    grid = np.asarray(params.grid)
+    rows, cols = np.nonzero((grid != WALL) & (grid != GOAL) & (grid != PIT))
+    off = (np.arange(k) + 0.5) / k
+    ox, oy = np.meshgrid(off, off)
+    pts = np.stack([cols[:, None] + ox.ravel(), rows[:, None] + oy.ravel()], -1)
+    return pts.reshape(-1, 2).astype(np.float32)
+
+
+@jax.jit
+def _expected_true_reward(params, pos, act, key):
+    """E_{s' ~ T}[r(s, a, s')] per (position, action), by 32 draws of the true next position."""
+
+    def one(p, a, k):
+        s = TerrainState(p, jnp.zeros((), jnp.int32), jnp.zeros((), bool))
+
+        def draw(kk):
+            return true_reward(s, a, s._replace(pos=sample_next(kk, params, p, a)), params)
+
+        return jax.vmap(draw)(jax.random.split(k, 32)).mean()
+
+    keys = jax.random.split(key, pos.shape[0])
+    return jax.vmap(one)(pos, act, keys)
+
+
+def reward_grid(world, k: int = 3, seed: int = 0):
+    """The grid the reward error is measured on: observations, actions and the true expected reward.
+
+    States: k×k points in every cell that is neither wall, goal nor pit; actions: the 8 full
+    pushes of :func:`~mindgap.planning.terrain.compass_actions`; every pair of the two.
+    Returns ``(obs [N, 2], act [N, 2], r [N])``.
+    """
+    pts = _passable_grid(world.params, k)
+    acts = compass_actions(8)
+    pos = np.repeat(pts, len(acts), 0)
+    act = np.tile(acts, (len(pts), 1))
+    r = _expected_true_reward(world.params, jnp.asarray(pos), jnp.asarray(act), rng.key(seed))
+    state = TerrainState(jnp.asarray(pos), jnp.zeros(len(pos), jnp.int32), jnp.zeros(len(pos), bool))
+    return observe(state, world.params), jnp.asarray(act), np.asarray(r, np.float64)
+
+
+def _zscore(x: np.ndarray) -> np.ndarray:
+    sd = x.std(-1, keepdims=True)
+    return (x - x.mean(-1, keepdims=True)) / np.where(sd > 0, sd, 1.0)
+
+
+def reward_error(world, reward_fn, params) -> np.ndarray:
+    """Per seed, the L2 (RMS) error of the normalised learned reward against the true reward.
+
+    On the grid of :func:`reward_grid` (every passable, non-terminal state of a k×k lattice
+    per cell, times the 8 full pushes), both the learned ``r̂(s, a)`` (``reward_fn`` at the
+    seed's parameters; the posterior mean for PrefBias, the ensemble mean for PEBBLE) and
+    the true ``r̄(s, a) = E_{s'~T}[r(s, a, s')]`` (the world's reward under its true dynamics,
+    by Monte Carlo) are z-scored over the grid — ``z(x) = (x − mean x) / std x`` — and the
+    error is ``sqrt(mean_grid (z(r̂) − z(r̄))²)``. Preferences fix a reward only up to an
+    offset and a scale, which the z-score removes; the error equals ``sqrt(2 (1 − ρ))`` with ρ
+    the Pearson correlation over the grid: 0 for the true reward up to a positive affine
+    map, √2 ≈ 1.41 for an unrelated one, 2 for the reversed one.
+
+    Args:
+        params: the learned reward's parameters with a leading seed axis.
+
+    Returns:
+        [seeds] float.
+    """
+    obs, act, truth = reward_grid(world)
+    learned = np.asarray(jax.vmap(lambda p: reward_fn(p, obs, act, obs))(params), np.float64)
+    diff = _zscore(learned) - _zscore(truth)[None]
+    return np.sqrt((diff**2).mean(-1))
+
+
+def seed_route_share(rec: dict, reference: dict | None) -> float:
+    """Fraction of a learner's seeds that take the truly better route (NaN where it is not defined)."""
+    flags = [better_route(r, reference) for r in rec["routes"]]
+    flags = [f for f in flags if f is not None]
+    return float(np.mean(flags)) if flags else float("nan")
+
+
+def _pm(values) -> str:
+    v = np.asarray(values, np.float64)
+    return f"{v.mean():.1f} ± {v.std():.1f}"
+
+
+# ---------------------------------------------------------------------------------------
+# running and reporting
+
+
+def run_experiment(cfg, out: Path, jobs: list[Job], write_outputs, *, fresh: bool, progress: bool, assemble_only: bool):
+    """Run (or resume) ``jobs`` in the run folder ``out``, then ``write_outputs(cfg, out, records)``.
+
+    ``assemble_only`` writes the outputs from the finished jobs and runs nothing.
+    Returns the summary, with ``missing_jobs``: how many jobs have no record yet.
+    """
+    out = Path(out)
+    folder = RunFolder(out, cfg, fresh=fresh)
+    records = run_jobs(folder, jobs, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only)
+    if not any(r["method"] != "reference" for r in records.values()):
+        raise RuntimeError(f"{out} has no finished learner jobs to assemble")
+    summary = write_outputs(cfg, out, records)
+    summary["missing_jobs"] = len(jobs) - len(records)
+    return summary
+
+
+ROUTES = {"true_prefers": "the {} corridor", "wider_berth": "the shortcut past the pit"}
+
+
+def route_name(world) -> str:
+    """What ``better_route`` means in this world (e.g. 'the ice corridor' on nav1)."""
+    if "true_prefers" in world.expect:
+        return ROUTES["true_prefers"].format(world.expect["true_prefers"])
+    return ROUTES["wider_berth"] if "wider_berth" in world.expect else "-"
+
+
+def result_row(rec: dict, reference: dict | None, oracle: dict | None) -> dict:
+    """One learner's results: return, normalised score, routes and errors (means and stds over seeds).
+
+    ``normalised`` is :func:`normalised` per seed against the random policy of ``reference``
+    and the mean final return of ``oracle`` (NaN without them).
+    """
+    final = np.asarray(rec["final"], np.float64)
+    rand = reference["random_return"] if reference else float("nan")
+    orc = float(np.mean(oracle["final"])) if oracle else float("nan")
+    norm = normalised(final, rand, orc) if reference and oracle else np.full_like(final, np.nan)
+    routes = rec["routes"]
+    pit = [r["pit_mean"] for r in routes if r["pit_mean"] is not None]
+    row = {
+        "method": rec["method"],
+        "world": rec["world"],
+        **rec["tags"],
+        "label": rec["label"],
+        "seeds": len(final),
+        "return_mean": float(final.mean()),
+        "return_std": float(final.std()),
+        "normalised_mean": float(norm.mean()),
+        "normalised_std": float(norm.std()),
+        "better_route": seed_route_share(rec, reference),
+        "goal_rate": float(np.mean([r["goal"] for r in routes])),
+        "ice_share": float(np.mean([r["ice"] for r in routes])),
+        "sand_share": float(np.mean([r["sand"] for r in routes])),
+        "pit_mean": float(np.mean(pit)) if pit else float("nan"),
+    }
+    for name in ("reward_error", "belief_error", "dynamics_error"):
+        if rec.get(name) is not None:
+            v = np.asarray(rec[name], np.float64)
+            row[f"{name}_mean"], row[f"{name}_std"] = float(v.mean()), float(v.std())
+    row.update(random_return=rand, oracle_return=orc, plan_return=reference["plan_return"] if reference else np.nan)
+    return row
+
+
+def curve_rows(rec: dict) -> list[dict]:
+    """Rows of curves.csv: method, world, the job's tags (queries, …), seed, step, return, queries shown so far."""
+    base = {"method": rec["method"], "world": rec["world"], **rec["tags"]}
+    return [{**base, "seed": s, "step": t, "return": r, "queries_shown": q} for s, t, r, q in rec["curve"]]
+
+
+def split(records: dict[str, dict]) -> tuple[dict, dict, list[dict]]:
+    """(reference record per world, oracle record per world, the other learners in job order)."""
+    refs = {r["world"]: r for r in records.values() if r["method"] == "reference"}
+    oracles = {r["world"]: r for r in records.values() if r["method"] == "sac"}
+    learned = [r for r in records.values() if r["method"] not in ("reference", "sac")]
+    return refs, oracles, learned
+
+
+def fmt(mean: float, std: float | None = None, digits: int = 1) -> str:
+    if mean is None or not np.isfinite(mean):
+        return "–"
+    s = f"{mean:.{digits}f}".replace("-", "−")
+    return s if std is None else f"{s} ± {std:.{digits}f}"
+
+
+def share(x: float) -> str:
+    return "–" if not np.isfinite(x) else f"{x:.0%}"
+
+
+def markdown(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows]) + "\n"
+
+
+def save_bars(path: Path, panels: list[tuple[str, dict[str, list[float]]]], title: str = "") -> Path:
+    """Bar charts side by side: per panel ``(y label, {label: values per seed})``; mean ± std, seeds as dots."""
+    import matplotlib.pyplot as plt
+
+    from ..plotting.terrain import METHOD_COLOURS
+
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.3 * len(panels), 3.2), squeeze=False)
+    for ax, (ylabel, groups) in zip(axes[0], panels):
+        for i, values in enumerate(groups.values()):
+            v = np.asarray([x for x in values if x is not None and np.isfinite(x)], np.float64)
+            if not len(v):
+                continue
+            col = METHOD_COLOURS[i % len(METHOD_COLOURS)]
+            ax.bar(i, v.mean(), yerr=v.std(), color=col, alpha=0.6, capsize=4)
+            ax.plot(np.full(len(v), i) + np.linspace(-0.15, 0.15, len(v)), v, "o", color=col, ms=3)
+        ax.set_xticks(range(len(groups)), list(groups), fontsize=7, rotation=15)
+        ax.set_ylabel(ylabel, fontsize=8)
+        ax.grid(axis="y", alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=150)
+    plt.close(fig)
+    atomic_write(Path(path), buf.getvalue())
+    return Path(path)
+
+
+def write_summary(out: Path, summary: dict) -> None:
+    """summary.json (NaN written as null, so any JSON reader takes it) and table.md."""
+    atomic_write(out / "summary.json", json.dumps(_finite(summary), indent=2))
+    atomic_write(out / "table.md", summary["table_md"])
+
+
+def _finite(obj):
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def claim(text: str, held, measured: str) -> dict:
+    """One of the issue's expectations, as measured (``held`` False where a number is missing)."""
+    return {"text": text, "held": bool(held), "measured": measured}

@@ -1,0 +1,174 @@
+"""Experiment ``priors``: PrefBias with the dynamics-based vs a random belief prior (§3.4.3.1, Figs. 22–24).
+
+The centre of p(φ) is either the agent's learned dynamics model f_ψ (``belief_prior =
+"dynamics"``, the default: a belief is a disturbance of the true dynamics) or a random
+initialisation (``"random"``); everything else is the same, including the biased person and
+the query budget. Per prior, with a SAC oracle and a random policy for the normalised score:
+
+* **belief error** (Fig. 22): per seed, the RMS over passable cells between the noise the
+  learned belief f_φ predicts and the noise of the person's own table, in cells
+  (:func:`~.prefbias_common.noise_rms_error`; ``belief_noise_rms_error`` of ``mindgap
+  prefbias``). ``dynamics_error`` is the same for the agent's f_ψ — the error of simply
+  assuming the person knows the true dynamics;
+* **reward error** (Fig. 23): the z-scored RMS error of the posterior-mean reward against
+  the true expected reward on a grid of states × actions (:func:`~.prefbias_common.reward_error`:
+  0 exact up to offset and scale, 1.41 unrelated, 2 reversed);
+* **return** (Fig. 24): learning curves and the final greedy return under the true reward.
+
+Outputs in the run folder: ``results.csv`` (per world and prior: the three, mean and std
+over seeds), ``curves.csv`` (method, world, queries, prior, seed, step, return),
+``errors_WORLD.png`` (bars: belief error, reward error, final return), ``curves_WORLD.png``,
+``beliefs_WORLD.png`` (noise per cell: the person's table, f_ψ, the learned belief under each
+prior), ``summary.json`` (with the issue's claims as measured) and ``table.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..algorithms.prefbias_inference import BELIEF_PRIORS
+from ..envs.terrain import load_world
+from ..models.prefbias_nets import table_noise_map
+from ..plotting.learning import save_learning_curves
+from ..plotting.terrain import save_fields
+from . import prefbias_common as pc
+from ._runfolder import to_jsonable, write_csv
+
+
+@dataclass(frozen=True)
+class PriorsConfig:
+    """What ``mindgap reproduce priors`` runs."""
+
+    worlds: tuple[str, ...] = ("nav1",)
+    """Named worlds or world files (each needs a belief)."""
+    priors: tuple[str, ...] = BELIEF_PRIORS
+    """Centres of p(φ) to compare: 'dynamics' (f_ψ) and 'random'."""
+    queries: int = 800
+    seeds: int = 5
+    learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))
+    reference: pc.ReferenceConfig = pc.ReferenceConfig()
+
+
+def preset(name: str) -> PriorsConfig:
+    """``full`` (5 seeds, 800 queries, 30 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
+    if name == "full":
+        return PriorsConfig()
+    if name == "fast":
+        return PriorsConfig(queries=30, seeds=1, learners=pc.learners("fast"))
+    raise ValueError(f"unknown preset {name!r}: use 'fast' or 'full'")
+
+
+def jobs(cfg: PriorsConfig) -> list[pc.Job]:
+    out = []
+    base = cfg.learners.prefbias
+    for w in cfg.worlds:
+        out += [pc.reference_job(w, cfg.reference), pc.oracle_job(w, cfg.learners)]
+        for p in cfg.priors:
+            pb = replace(base, queries=cfg.queries, prefbias=replace(base.prefbias, belief_prior=p))
+            out.append(pc.prefbias_job(w, pb, f"PrefBias, {p} prior", f"prefbias-{p}", prior=p))
+    return out
+
+
+def run(cfg: PriorsConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
+    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
+    return pc.run_experiment(
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
+    )
+
+
+def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
+    refs, oracles, learned = pc.split(records)
+    rows, curves, claims, table = [], [], [], []
+    for spec in cfg.worlds:
+        world = load_world(spec)
+        recs = [r for r in learned if r["world"] == spec]
+        oracle = oracles.get(spec)
+        if not recs:
+            continue
+        mine = [pc.result_row(r, refs.get(spec), oracle) for r in recs]
+        rows += mine + ([pc.result_row(oracle, refs.get(spec), oracle)] if oracle else [])
+        curves += [c for r in recs + [oracle] * (oracle is not None) for c in pc.curve_rows(r)]
+        for r in mine:
+            table.append(
+                [
+                    world.name,
+                    r["prior"],
+                    pc.fmt(r["belief_error_mean"], r["belief_error_std"], 3),
+                    pc.fmt(r["dynamics_error_mean"], r["dynamics_error_std"], 3),
+                    pc.fmt(r["reward_error_mean"], r["reward_error_std"], 2),
+                    pc.fmt(r["return_mean"], r["return_std"]),
+                    pc.fmt(r["normalised_mean"], r["normalised_std"], 2),
+                ]
+            )
+        claims += _claims(world, mine)
+        _figures(out, world, recs, oracle, refs.get(spec))
+    write_csv(
+        out / "results.csv",
+        rows,
+        ["method", "world", "prior", "queries", "seeds", "belief_error_mean", "belief_error_std"]
+        + ["reward_error_mean", "reward_error_std", "return_mean", "return_std"],
+    )
+    write_csv(out / "curves.csv", curves, ["method", "world", "queries", "prior", "seed", "step", "return"])
+    header = ["world", "prior", "belief error", "f_ψ's error", "reward error", "final return", "normalised"]
+    table_md = (
+        f"priors (Figs. 22–24): PrefBias with {cfg.queries} queries, mean ± std over {cfg.seeds} seed(s). "
+        "belief error: RMS over cells of the learned belief's noise minus the person's (cells); f_ψ's error: "
+        "the same for the agent's dynamics model; reward error: z-scored RMS (0 exact, 1.41 unrelated); "
+        "normalised return: 0 = random policy, 1 = SAC oracle.\n\n" + pc.markdown(header, table)
+    )
+    summary = {"experiment": "priors", "config": to_jsonable(cfg), "results": rows, "claims": claims}
+    summary["table_md"] = table_md
+    pc.write_summary(out, summary)
+    return summary
+
+
+def _claims(world, rows: list[dict]) -> list[dict]:
+    """Issue 6: the dynamics prior gives lower belief and reward errors and at least equal return."""
+    by = {r["prior"]: r for r in rows}
+    if "dynamics" not in by or "random" not in by:
+        return []
+    d, r = by["dynamics"], by["random"]
+    return [
+        pc.claim(
+            f"{world.name}: the dynamics prior gives the lower {what}", d[key] < r[key], f"{d[key]:.3f} vs {r[key]:.3f}"
+        )
+        for what, key in (("belief error", "belief_error_mean"), ("reward error", "reward_error_mean"))
+    ] + [
+        pc.claim(
+            f"{world.name}: the dynamics prior's return is at least the random prior's",
+            d["return_mean"] >= r["return_mean"],
+            f"{d['return_mean']:.1f} vs {r['return_mean']:.1f}",
+        )
+    ]
+
+
+def _figures(out: Path, world, recs: list[dict], oracle: dict | None, ref: dict | None) -> None:
+    label = {r["label"]: r for r in recs}
+    pc.save_bars(
+        out / f"errors_{world.name}.png",
+        [
+            ("belief error (noise RMS, cells)", {k: r["belief_error"] for k, r in label.items()}),
+            ("reward error (z-scored RMS)", {k: r["reward_error"] for k, r in label.items()}),
+            ("final return (true reward)", {k: r["final"] for k, r in label.items()}),
+        ],
+        title=f"{world.name}: belief prior centred on f_ψ (dynamics) or at random (Figs. 22–24)",
+    )
+    runs = {k: r["curve"] for k, r in label.items()}
+    if oracle is not None:
+        runs[oracle["label"]] = oracle["curve"]
+    save_learning_curves(
+        out / f"curves_{world.name}.png",
+        runs,
+        title=f"{world.name}: return under the true reward by belief prior (Fig. 24)",
+        reference=ref["plan_return"] if ref else None,
+    )
+    person = np.asarray(table_noise_map(world.belief()))
+    fields = [
+        ("the person's belief (table)", person),
+        (f"agent's f_ψ ({recs[0]['tags']['prior']} prior's run)", pc.map_array(recs[0]["dynamics_map"])),
+    ]
+    fields += [(f"learned belief, {r['tags']['prior']} prior", pc.map_array(r["belief_map"])) for r in recs]
+    save_fields(out / f"beliefs_{world.name}.png", world.params, fields, label="noise σ (cells)")

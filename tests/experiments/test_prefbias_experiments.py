@@ -1,0 +1,265 @@
+"""The PrefBias experiments (``mindgap reproduce nav|priors|sampling``): files, values, resume.
+
+Two tiers. The default tests run each experiment's ``--fast`` preset through the CLI with the
+learners' ``train`` and the reference job (random policy, planning check) replaced by
+stand-ins that return results of the real shape: seconds, no RL program to compile. They
+check the run folder, the CSV/JSON/PNG outputs, the metrics computed from the results and
+that a rerun computes nothing. The metrics themselves are checked on hand-made inputs. The
+``slow`` tests run the real ``--fast`` presets end to end: each compiles PrefBias's feedback
+round for every setting it compares, several minutes on a 2-core CPU with a cold compilation
+cache, one to a few with a warm one.
+"""
+
+import csv
+import json
+from types import SimpleNamespace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mindgap import rng
+from mindgap.algorithms import pbrl, prefbias
+from mindgap.cli import main
+from mindgap.envs.terrain import load_world
+from mindgap.experiments import prefbias_common as pc
+from mindgap.models.mlp import init_mlp, init_stack
+from mindgap.models.prefbias_nets import reward_sizes, table_noise_map
+
+FINAL = {"prefbias": -5.0, "pebble": -90.0, "sac": -1.0}
+RANDOM = -100.0
+
+
+def rows(path):
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def _line(a, b, step=0.3):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+    return a + (b - a) * np.linspace(0, 1, n + 1)[:, None]
+
+
+def _route(*points):
+    return np.concatenate([_line(p, q)[:-1] for p, q in zip(points, points[1:])] + [np.asarray([points[-1]])])
+
+
+ICE_ROUTE = _route((12.5, 3.5), (12.5, 1.5), (1.5, 1.5), (1.5, 3.5))  # nav1: up, along the icy corridor, down
+SAND_ROUTE = _route((12.5, 3.5), (12.5, 4.5), (1.5, 4.5), (1.5, 3.5))
+NEAR_ROUTE = _route((9.5, 1.5), (1.5, 1.5))  # nav2: along the pit's edge
+FAR_ROUTE = _route((9.5, 1.5), (9.5, 5.5), (1.5, 5.5), (1.5, 1.5))  # round it, well away
+
+
+def _stack(trees):
+    return jax.tree.map(lambda *x: jnp.stack(x), *trees)
+
+
+def _fake_result(world, cfg, seeds, method):
+    """What ``train`` returns, of the right shapes, with a final return per method."""
+    steps = range(cfg.eval_every, cfg.total_steps + 1, cfg.eval_every)
+    curve = [(s, t, FINAL[method] * t / cfg.total_steps + s, cfg.queries) for t in steps for s in range(seeds)]
+    keys = jax.random.split(rng.key(1), seeds)
+    good, bad = (ICE_ROUTE, SAND_ROUTE) if world.name == "nav1" else (NEAR_ROUTE, FAR_ROUTE)
+    path = bad if method == "pebble" else good
+    res = {
+        "curve": curve,
+        "final_returns": np.full((seeds, 20), FINAL[method]) + np.arange(seeds)[:, None],
+        "paths": [[path, path[:10]] for _ in range(seeds)],
+    }
+    if method == "prefbias":
+        sizes = reward_sizes(2, 2, cfg.prefbias.reward_hidden)
+        res["carry"] = SimpleNamespace(
+            model=SimpleNamespace(reward=SimpleNamespace(mean=_stack([init_mlp(k, sizes) for k in keys])))
+        )
+        wall = np.isnan(np.asarray(table_noise_map(world.params)))
+        noise = np.where(wall, np.nan, 0.1 + 0.01 * np.arange(seeds)[:, None, None])
+        res["belief_noise"], res["dynamics_noise"] = noise, noise * 0.5
+    else:
+        params = _stack([init_stack(k, cfg.reward.members, (4, *cfg.reward.hidden, 1)) for k in keys])
+        res["carry"] = SimpleNamespace(reward=SimpleNamespace(params=params))
+    return res
+
+
+@pytest.fixture
+def stand_ins(monkeypatch):
+    """Replace the learners' ``train`` and the reference job; count the calls."""
+    calls = []
+
+    def fake_prefbias(world, cfg, seeds=1, teacher="biased", **kw):
+        calls.append(("prefbias", world.name, cfg.queries))
+        assert teacher == "biased" and kw["out"].parent.name == "train"
+        return _fake_result(world, cfg, seeds, "prefbias")
+
+    def fake_pbrl(world, cfg, seeds=1, teacher="true", **kw):
+        calls.append((cfg.method, world.name, cfg.queries))
+        assert teacher == ("true" if cfg.method == "sac" else "biased")
+        return _fake_result(world, cfg, seeds, cfg.method)
+
+    def fake_reference(world, cfg):
+        calls.append(("reference", world.name, 0))
+        stats = {"goal": 1.0, "pit_mean": 1.0}
+        return {
+            "random_return": RANDOM,
+            "random_return_std": 1.0,
+            "plan_return": 0.5,
+            "optimal": stats,
+            "expected": {**stats, "pit_mean": 1.7},
+            "belief": "human",
+        }
+
+    monkeypatch.setattr(prefbias, "train", fake_prefbias)
+    monkeypatch.setattr(pbrl, "train", fake_pbrl)
+    monkeypatch.setattr(pc, "_reference", fake_reference)
+    return calls
+
+
+def _run_twice(name, out, calls, capsys, n_jobs):
+    """Run the fast preset, then again: the rerun computes nothing and prints the same table."""
+    assert main(["reproduce", name, "--fast", "--quiet", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert len(calls) == n_jobs and len(list((out / "jobs").glob("*.json"))) == n_jobs
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
+    assert main(["reproduce", name, "--fast", "--quiet", "--out", str(out)]) == 0
+    assert len(calls) == n_jobs  # nothing recomputed
+    assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
+    assert capsys.readouterr().out == printed
+    return printed
+
+
+def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path, capsys):
+    out = tmp_path / "nav"
+    printed = _run_twice("nav", out, stand_ins, capsys, n_jobs=8)  # 2 worlds × reference, SAC, PEBBLE, PrefBias
+    assert "| nav1 | PrefBias (30 queries) |" in printed and "| nav2 | PEBBLE (30 queries) |" in printed
+    results = rows(out / "results.csv")
+    assert list(results[0])[:6] == ["method", "world", "queries", "seeds", "return_mean", "return_std"]
+    assert sorted((r["world"], r["method"]) for r in results) == [
+        (w, m) for w in ("nav1", "nav2") for m in ("pebble", "prefbias", "sac")
+    ]
+    for r in results:
+        assert float(r["return_mean"]) == FINAL[r["method"]]
+        norm = (FINAL[r["method"]] - RANDOM) / (FINAL["sac"] - RANDOM)
+        assert float(r["normalised_mean"]) == pytest.approx(norm, abs=1e-4)
+        if r["method"] != "sac":
+            assert 0 <= float(r["reward_error_mean"]) <= 2
+    by = {(r["world"], r["method"]): r for r in results}
+    assert float(by["nav1", "prefbias"]["better_route"]) == 1.0  # the icy corridor
+    assert float(by["nav1", "pebble"]["better_route"]) == 0.0  # the sandy one
+    curves = rows(out / "curves.csv")
+    assert list(curves[0])[:6] == ["method", "world", "queries", "seed", "step", "return"]
+    assert len(curves) == 2 * 3 * 3  # worlds × learners × evaluations (1 seed)
+    assert all(np.isfinite(float(c["return"])) for c in curves)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["experiment"] == "nav" and summary["config"]["seeds"] == 1
+    claims = {c["text"]: c["held"] for c in summary["claims"]}
+    assert claims["nav1: PrefBias (30 queries) takes the ice corridor in most seeds"]
+    assert claims["nav1: PEBBLE (30 queries) stays below PrefBias (30 queries)"]
+    for name in ("curves_nav1.png", "curves_nav2.png", "trajectories_nav1.png", "trajectories_nav2.png", "table.md"):
+        assert (out / name).stat().st_size > 0, name
+    # another configuration in the same folder is refused; --fresh recomputes everything
+    assert main(["reproduce", "nav", "--fast", "--quiet", "--seeds", "2", "--out", str(out)]) == 2
+    assert "another configuration" in capsys.readouterr().err
+    assert main(["reproduce", "nav", "--fast", "--quiet", "--seeds", "2", "--fresh", "--out", str(out)]) == 0
+    assert len(stand_ins) == 16
+    assert len(rows(out / "curves.csv")) == 2 * 3 * 3 * 2
+    assert main(["reproduce", "nav", "--fast", "--shard", "0/2", "--out", str(out)]) == 2
+    assert "--shard is not supported" in capsys.readouterr().err
+
+
+def test_priors_fast_reports_belief_and_reward_errors(stand_ins, tmp_path, capsys):
+    out = tmp_path / "priors"
+    printed = _run_twice("priors", out, stand_ins, capsys, n_jobs=4)  # reference, SAC, two priors
+    assert "| nav1 | dynamics |" in printed and "| nav1 | random |" in printed
+    results = {r["prior"]: r for r in rows(out / "results.csv")}
+    assert set(results) == {"dynamics", "random", ""}  # "" is the SAC oracle
+    for prior in ("dynamics", "random"):
+        r = results[prior]
+        assert float(r["belief_error_mean"]) >= 0 and float(r["dynamics_error_mean"]) >= 0
+        assert 0 <= float(r["reward_error_mean"]) <= 2 and np.isfinite(float(r["return_mean"]))
+    # the stand-in's belief noise is 0.1 everywhere: its error is the RMS of (0.1 − the person's table)
+    person = np.asarray(table_noise_map(load_world("nav1").belief()))
+    expect = np.sqrt(np.nanmean((0.1 - person) ** 2))
+    assert float(results["dynamics"]["belief_error_mean"]) == pytest.approx(expect, rel=1e-4)
+    assert {c["prior"] for c in rows(out / "curves.csv")} == {"dynamics", "random", ""}
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["claims"]) == 3
+    for name in ("errors_nav1.png", "curves_nav1.png", "beliefs_nav1.png"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_sampling_fast_compares_the_four_samplers(stand_ins, tmp_path, capsys):
+    out = tmp_path / "sampling"
+    printed = _run_twice("sampling", out, stand_ins, capsys, n_jobs=6)  # reference, SAC, four samplers
+    results = rows(out / "results.csv")
+    samplers = [r["sampler"] for r in results if r["method"] == "prefbias"]
+    assert samplers == ["uniform", "disagreement", "entropy", "preference_disagreement"]
+    assert all(f"| nav1 | {s} |" in printed for s in samplers)
+    assert all(float(r["belief_error_mean"]) >= 0 for r in results if r["method"] == "prefbias")
+    assert len(rows(out / "curves.csv")) == 5 * 3
+    for name in ("curves_nav1.png", "final_nav1.png", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_metrics_on_hand_made_inputs():
+    nav1, nav2 = load_world("nav1"), load_world("nav2")
+    # routes: the icy corridor is nav1's better route, the sandy one is not; half-way is not arriving
+    assert pc.route_of(nav1, [ICE_ROUTE] * 3)["better"] is True
+    sand = pc.route_of(nav1, [SAND_ROUTE] * 3)
+    assert sand["better"] is False and sand["goal"] == 1.0 and sand["sand"] > 0.5
+    assert pc.route_of(nav1, [ICE_ROUTE[:20]] * 3)["better"] is False
+    # nav2 is judged by the distance to the pit against the two planned routes
+    ref = {"optimal": {"pit_mean": 1.0}, "expected": {"pit_mean": 1.8}}
+    assert pc.better_route(pc.route_of(nav2, [NEAR_ROUTE]), ref) is True
+    assert pc.better_route(pc.route_of(nav2, [FAR_ROUTE]), ref) is False
+    # the normalised score
+    np.testing.assert_allclose(pc.normalised([-100.0, -50.0, 0.0], -100.0, 0.0), [0.0, 0.5, 1.0])
+    assert np.isnan(pc.normalised([1.0], 0.0, -1.0)).all()
+    # the reward error is 0 for the truth up to offset and scale, 2 for its reverse, ~1.41 for noise
+    _, _, truth = pc.reward_grid(nav1)
+    noise = np.random.default_rng(0).standard_normal(truth.shape)
+
+    def scaled(p, obs, act, next_obs):
+        return p[0] * jnp.asarray(truth) + p[1] + p[2] * jnp.asarray(noise)
+
+    err = pc.reward_error(nav1, scaled, jnp.array([[3.0, 5.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
+    np.testing.assert_allclose(err[:2], [0.0, 2.0], atol=1e-5)
+    assert abs(err[2] - np.sqrt(2)) < 0.1
+
+
+def _real(name, tmp_path, capsys):
+    out = tmp_path / name
+    assert main(["reproduce", name, "--fast", "--quiet", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
+    assert main(["reproduce", name, "--fast", "--quiet", "--out", str(out)]) == 0
+    assert capsys.readouterr().out == printed
+    assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
+    results = rows(out / "results.csv")
+    for r in results:
+        assert -250 < float(r["return_mean"]) < 50
+        for col in ("reward_error_mean", "belief_error_mean"):
+            if r.get(col):
+                assert float(r[col]) >= 0
+    assert all(np.isfinite(float(c["return"])) for c in rows(out / "curves.csv"))
+    return results
+
+
+@pytest.mark.slow
+def test_nav_fast_for_real(tmp_path, capsys):
+    results = _real("nav", tmp_path, capsys)
+    assert sorted((r["world"], r["method"]) for r in results) == [
+        (w, m) for w in ("nav1", "nav2") for m in ("pebble", "prefbias", "sac")
+    ]
+
+
+@pytest.mark.slow
+def test_priors_fast_for_real(tmp_path, capsys):
+    results = _real("priors", tmp_path, capsys)
+    assert {r["prior"] for r in results} == {"dynamics", "random", ""}
+
+
+@pytest.mark.slow
+def test_sampling_fast_for_real(tmp_path, capsys):
+    results = _real("sampling", tmp_path, capsys)
+    assert len([r for r in results if r["method"] == "prefbias"]) == 4
