@@ -8,6 +8,7 @@ mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
 mindgap prefbias --world W --out DIR …   (PrefBias, Algorithm 2; see mindgap.commands.prefbias)
+mindgap eps --world W --lam L --out DIR …   (EPS, Algorithm 3; see mindgap.commands.eps)
 mindgap study serve|check|links|export|examples …  (user studies in the browser; see mindgap.commands.study)
 """
 
@@ -38,11 +39,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
-    from .commands import learn, prefbias, study, worlds
+    from .commands import eps, learn, prefbias, study, worlds
 
     worlds.add_parser(sub)
     learn.add_parsers(sub)
     prefbias.add_parser(sub)
+    eps.add_parser(sub)
     study.add_parser(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
@@ -112,6 +114,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import prefbias
 
             return prefbias.run(args)
+        if args.command == "eps":
+            from .commands import eps
+
+            return eps.run(args)
         return _gerel(args)
     except (ValueError, RuntimeError, FloatingPointError) as e:
         print(f"mindgap: error: {e}", file=sys.stderr)

@@ -100,24 +100,32 @@ def save_panels(path: str | Path, panels: Sequence[tuple[str, object, Mapping]],
     return path
 
 
-def save_fields(path: str | Path, params, fields: Sequence[tuple[str, np.ndarray]], label: str = "noise σ") -> Path:
+def save_fields(
+    path: str | Path,
+    params,
+    fields: Sequence[tuple[str, np.ndarray]],
+    label: str = "noise σ",
+    vmin: float | None = 0.0,
+    cmap: str = "magma_r",
+) -> Path:
     """Heatmaps of per-position quantities (e.g. the noise scale under the truth and a belief).
 
     Args:
         fields: ``[(title, values [h·k, w·k]), …]`` sampled on a k×k grid per cell; walls masked.
+        vmin: bottom of the shared colour scale (None: the smallest value shown).
     """
     path = Path(path)
     grid = np.asarray(params.grid)
     h, w = grid.shape
     vmax = max(float(np.nanmax(f)) for _, f in fields)
+    if vmin is None:
+        vmin = min(float(np.nanmin(f)) for _, f in fields)
     fig, axes = plt.subplots(1, len(fields), figsize=(len(fields) * (0.45 * w + 1.2), 0.45 * h + 0.8), squeeze=False)
     for ax, (title, f) in zip(axes[0], fields):
         draw_world(ax, params)
         k = f.shape[0] // h
         wall = np.repeat(np.repeat(grid == WALL, k, 0), k, 1)
-        im = ax.imshow(
-            np.ma.masked_where(wall, f), extent=(0, w, h, 0), cmap="magma_r", vmin=0, vmax=vmax, alpha=0.75
-        )
+        im = ax.imshow(np.ma.masked_where(wall, f), extent=(0, w, h, 0), cmap=cmap, vmin=vmin, vmax=vmax, alpha=0.75)
         ax.set_title(title, fontsize=9)
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02, label=label)
     _save(fig, path)

@@ -1,0 +1,346 @@
+"""Explicable policy search (Algorithm 3) and the DRLHP baseline on expectation preferences.
+
+The loop of Algorithm 3 on the engine of :mod:`~mindgap.algorithms.pbrl` (same phases,
+checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
+
+1. ``random`` steps until ``sac.learning_starts`` (line 3 with a uniform policy);
+2. every ``feedback_every`` steps while the budget lasts, a feedback round:
+
+   * fit T_A, a Gaussian dynamics model, to the replay buffer D (line 4): afresh with the
+     buffer's normalisation the first time, warm-started after;
+   * pick ``per_round`` pairs of segments with the uncertainty sampler of the engine and ask
+     the simulated person which is *more expected* (lines 5–6;
+     :mod:`~mindgap.teachers.expectation`: Bradley–Terry on Σ log T_H + log π_H);
+   * fit the reward ensemble u_H to all answers (line 7), standardise it over the buffer
+     (§4.3.3) and relabel the whole buffer with the reshaped reward;
+
+3. in between, SAC on the reshaped reward ``r_A + λ(u_H + H_T)`` with the fixed entropy
+   coefficient α = λ·reward_scale, so that SAC's own entropy bonus is Eq. 4.6's λ H_π
+   (line 10; :mod:`~mindgap.algorithms.eps_reward`).
+
+The entropy weight is λ itself (the scale of Eq. 4.6, the same in every world); u_H has unit
+spread over the buffer, so λ weighs it against r_A the same way in every world.
+
+``method="drlhp"`` is the DRLHP baseline of §4.4.1.1: the same preferences and ensemble, the
+agent optimising the standardised u_H alone (no r_A, no H_T; SAC's α tuned as usual).
+T_A is not retrained once the query budget is spent: the reward is then fixed, as in the
+engine's other methods.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import rng
+from ..feedback.queries import SAMPLERS, select_queries
+from ..feedback.replay import relabel
+from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
+from ..models.reward_ensemble import (
+    PrefData,
+    RewardConfig,
+    RewardState,
+    prefs_add,
+    prefs_init,
+    reward_init,
+    train_reward,
+)
+from ..teachers import expectation
+from ..teachers.expectation import ExpectationTeacher
+from ..teachers.preference import TeacherConfig
+from .eps_reward import EPSRewardParams, eps_reward, eps_sac_config, normalised_u, u_norm_from_replay
+from .explicability import explicability
+from .pbrl import Schedule, _fingerprint, drive
+from .sac import SACConfig
+from .sac_loop import LoopState, loop_init, run_chunk
+
+METHODS = ("eps", "drlhp")
+
+
+@dataclasses.dataclass(frozen=True)
+class EPSConfig(Schedule):
+    """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument)."""
+
+    method: str = "eps"
+    """eps (Algorithm 3) or drlhp (u_H alone, the baseline of §4.4.1.1)."""
+    lam: float = 2.0
+    """λ, the reconciliation factor of Eq. 4.6 (the dissertation tunes it in [2.0, 2.8])."""
+    total_steps: int = 60_000
+    """Environment steps per seed."""
+    chunk: int = 1000
+    """Steps per jitted chunk; every boundary below is a multiple of it."""
+    eval_every: int = 2000
+    """Steps between evaluations of the greedy policy under the true reward."""
+    eval_episodes: int = 10
+    """Episodes per evaluation."""
+    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
+    """SAC settings; for EPS its α is replaced by λ·reward_scale."""
+    reward: RewardConfig = RewardConfig()
+    """The ensemble that learns u_H."""
+    dynamics: DynamicsConfig = DynamicsConfig()
+    """T_A, the agent's Gaussian dynamics model (H_T)."""
+    queries: int = 800
+    """Total query budget (pairs shown)."""
+    per_round: int = 80
+    """Queries per feedback round."""
+    feedback_every: int = 2000
+    """Steps between feedback rounds."""
+    sampler: str = "disagreement"
+    """uniform, disagreement or entropy (uncertainty sampling, §4.3.3)."""
+    candidates: int = 10
+    """Pairs drawn per query kept (score-based samplers)."""
+    segment: int = 10
+    """Steps per segment."""
+    explore_steps: int = 0
+    """No state-entropy pre-training (read by the engine's schedule)."""
+    reset_critic: bool = False
+    """Read by the engine's schedule; EPS keeps its critic."""
+    teacher: TeacherConfig = TeacherConfig()
+    """Answering knobs of the simulated person (β, mistakes, skips, …)."""
+    seed: int = 0
+    """Base seed; seed i of a run uses seed + i."""
+
+    def check(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+        if self.sampler not in SAMPLERS:
+            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        if self.lam < 0:
+            raise ValueError(f"λ must be non-negative, got {self.lam}")
+        self.check_schedule()
+        if self.queries < 1 or self.per_round < 1:
+            raise ValueError("queries and per_round must be at least 1")
+
+    def agent_sac(self) -> SACConfig:
+        """The SAC the agent runs: α fixed to λ·reward_scale for EPS, as configured for DRLHP."""
+        return eps_sac_config(self.sac, self.lam) if self.method == "eps" else self.sac
+
+
+_FAST = dict(
+    total_steps=1500,
+    chunk=250,
+    eval_every=500,
+    eval_episodes=4,
+    feedback_every=250,
+    queries=30,
+    per_round=10,
+    segment=5,
+    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
+    reward=RewardConfig(members=2, hidden=(8, 8), updates=10, batch_size=8),
+    dynamics=DynamicsConfig(hidden=(8, 8), max_epochs=3, steps_per_epoch=5, batch_size=32),
+)
+PRESETS = ("full", "fast")
+
+
+def eps_config(preset: str = "full", **overrides) -> EPSConfig:
+    """A preset with ``overrides`` applied, checked (``fast``: tiny networks, 1500 steps; for tests)."""
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}: choose from {', '.join(PRESETS)}")
+    cfg = EPSConfig(**{**(_FAST if preset == "fast" else {}), **overrides})
+    cfg.check()
+    return cfg
+
+
+class EPSCarry(NamedTuple):
+    """Everything a run carries between chunks, each leaf with a leading seed axis."""
+
+    loop: LoopState
+    reward: RewardState
+    prefs: PrefData
+    dynamics: DynamicsModel
+    u_norm: jax.Array  # [2]: mean and std of u_H over the buffer
+    key: jax.Array
+    queries: jax.Array
+
+
+def expectation_reward(params: EPSRewardParams, obs, act, next_obs) -> jax.Array:
+    """DRLHP's reward: the standardised u_H alone."""
+    return normalised_u(params, obs, act, next_obs)
+
+
+def _reward_fn(cfg: EPSConfig):
+    return eps_reward if cfg.method == "eps" else expectation_reward
+
+
+def _reward_params(world_params, c: EPSCarry, cfg: EPSConfig) -> EPSRewardParams:
+    f = jnp.float32
+    return EPSRewardParams(
+        world_params,
+        c.reward.params,
+        c.u_norm[0],
+        c.u_norm[1],
+        c.dynamics,
+        jnp.asarray(cfg.dynamics.min_std, f),
+        jnp.zeros((), f),
+        jnp.asarray(cfg.lam, f),
+    )
+
+
+def _init(keys, world_params, cfg: EPSConfig) -> EPSCarry:
+    def one(k):
+        k_loop, k_rew, k_dyn, k_run = jax.random.split(k, 4)
+        norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.ones(2))  # replaced at the first round
+        return EPSCarry(
+            loop_init(k_loop, world_params, cfg.agent_sac(), cfg.total_steps),
+            reward_init(k_rew, 2, 2, cfg.reward),
+            prefs_init(cfg.queries, cfg.segment, 2, 2),
+            dynamics_init(k_dyn, 2, 2, cfg.dynamics, norm),
+            jnp.array([0.0, 1.0], jnp.float32),
+            k_run,
+            jnp.zeros((), jnp.int32),
+        )
+
+    return jax.vmap(one)(keys)
+
+
+def _where(cond, a, b):
+    return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
+
+
+def _round_one(c: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
+    """One seed's feedback round (lines 4–7 of Algorithm 3), then relabelling."""
+    key, k_dyn, k_fresh, k_q, k_t, k_r = jax.random.split(c.key, 6)
+    buf = c.loop.replay
+    dyn = c.dynamics
+    if cfg.method == "eps":
+        valid = jnp.arange(buf.capacity) < buf.size
+        fresh = dynamics_init(k_fresh, 2, 2, cfg.dynamics, fit_norm(buf.obs, buf.act, buf.next_obs, valid))
+        dyn, _ = train_dynamics(
+            k_dyn, buf.obs, buf.act, buf.next_obs, valid, cfg.dynamics, init=_where(c.queries == 0, fresh, dyn)
+        )
+    seg_a, seg_b = select_queries(k_q, buf, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates)
+    labels, answered = expectation.answer(k_t, seg_a, seg_b, person, tcfg)
+    left = cfg.queries - c.queries
+    answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
+    prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
+    rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
+    u_norm = jnp.stack(u_norm_from_replay(rew.params, buf))
+    c = c._replace(reward=rew, prefs=prefs, dynamics=dyn, u_norm=u_norm, key=key)
+    replay = relabel(buf, _reward_fn(cfg), _reward_params(world_params, c, cfg))
+    shown = jnp.minimum(cfg.per_round, left)
+    return c._replace(loop=c.loop._replace(replay=replay), queries=c.queries + shown), (loss, acc)
+
+
+@partial(jax.jit, static_argnames=("cfg", "tcfg"))
+def _feedback(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
+    return jax.vmap(lambda c: _round_one(c, world_params, person, cfg, tcfg))(carry)
+
+
+def _chunk(carry: EPSCarry, world_params, cfg: EPSConfig, phase: str) -> EPSCarry:
+    learned = phase == "train"
+    sac = cfg.agent_sac()
+
+    def one(c: EPSCarry):
+        return run_chunk(
+            c.loop,
+            world_params,
+            _reward_params(world_params, c, cfg),
+            n_steps=cfg.chunk,
+            cfg=sac,
+            phase=phase,
+            reward_fn=_reward_fn(cfg) if learned else None,
+        )
+
+    return carry._replace(loop=jax.vmap(one)(carry))
+
+
+def train(
+    world,
+    cfg: EPSConfig,
+    person: ExpectationTeacher,
+    seeds: int = 1,
+    out: Path | None = None,
+    progress: bool = True,
+    fresh: bool = False,
+    person_name: str = "biased",
+) -> dict:
+    """Run ``seeds`` seeds of EPS (or expectation-DRLHP) on a terrain world; checkpoint to ``out``.
+
+    Args:
+        world: a :class:`~mindgap.envs.terrain.TerrainWorld`.
+        person: the simulated person (:func:`~mindgap.teachers.expectation.expectation_teacher`).
+        person_name: how the run record names the person (``biased``, ``unbiased``).
+
+    Returns:
+        the dict of :func:`mindgap.algorithms.pbrl.train` (``curve``, ``final_returns``,
+        ``paths``, ``config``, ``carry``).
+    """
+    cfg.check()
+    if seeds < 1:
+        raise ValueError("seeds must be at least 1")
+    params = world.params
+    tcfg = cfg.teacher
+    meta = {"world": world.name, "source": world.source, "world_hash": _fingerprint(world), "seeds": seeds}
+    meta.update(teacher=f"expectation:{person_name}", person_hash=_person_hash(person), config=cfg.as_dict())
+    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+
+    def feedback(c):
+        return _feedback(c, params, person, cfg, tcfg)[0]
+
+    def chunk(c, phase):
+        return _chunk(c, params, cfg, phase)
+
+    # the engine's schedule reads cfg.sac (learning_starts) — the same for the agent's SAC
+    return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
+
+
+def _person_hash(person: ExpectationTeacher) -> str:
+    import hashlib
+
+    h = hashlib.sha256()
+    for leaf in jax.tree.leaves(person):
+        h.update(np.asarray(leaf).tobytes())
+    return h.hexdigest()[:16]
+
+
+def explicability_scores(key, world_params, person: ExpectationTeacher, actors, episodes: int = 100):
+    """Explicability score (Eq. 4.4) of each seed's policy over ``episodes`` stochastic rollouts.
+
+    Args:
+        actors: SAC actor parameters with a leading seed axis.
+
+    Returns:
+        one dict per seed: score, its standard error, its dynamics and policy parts
+        (see :class:`~mindgap.algorithms.explicability.Explicability`) and the mean return
+        of those rollouts.
+    """
+    seeds = jax.tree.leaves(actors)[0].shape[0]
+    out = []
+    for s, k in enumerate(jax.random.split(key, seeds)):
+        actor = jax.tree.map(lambda a: a[s], actors)
+        e = explicability(k, world_params, person.belief, actor, person.policy, episodes)
+        out.append(
+            {
+                "score": float(e.score),
+                "stderr": float(e.stderr),
+                "dynamics_part": float(e.dynamics),
+                "policy_part": float(e.policy),
+                "stochastic_return": float(jnp.mean(e.returns)),
+            }
+        )
+    return out
+
+
+@partial(jax.jit, static_argnames=("k",))
+def surrogate_map(u_params, u_norm: jax.Array, world_params, k: int = 4) -> jax.Array:
+    """The standardised u_H on a k×k grid of points per cell, averaged over 16 full-speed directions (Fig. 28).
+
+    Returns [H·k, W·k] (the layout of :func:`~mindgap.plotting.terrain.save_fields`); the
+    walls are masked when drawn.
+    """
+    h, w = world_params.grid.shape
+    ys, xs = (jnp.arange(h * k) + 0.5) / k, (jnp.arange(w * k) + 0.5) / k
+    pos = jnp.stack(jnp.meshgrid(xs, ys), -1).reshape(-1, 2)  # (x, y), row-major over [H·k, W·k]
+    obs = 2.0 * pos / jnp.array([w, h], jnp.float32) - 1.0
+    angles = jnp.linspace(0.0, 2 * jnp.pi, 16, endpoint=False)
+    acts = jnp.stack([jnp.cos(angles), jnp.sin(angles)], -1)
+    flat = jnp.repeat(obs, 16, axis=0)
+    params = EPSRewardParams(world_params, u_params, u_norm[0], u_norm[1], None, 0.0, 0.0, 0.0)
+    u = normalised_u(params, flat, jnp.tile(acts, (obs.shape[0], 1)), flat)
+    return u.reshape(h * k, w * k, 16).mean(-1)

@@ -1,0 +1,79 @@
+"""The EPS loop (Algorithm 3): one feedback round relabels exactly with Eq. 4.6; the CLI runs, writes, resumes."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mindgap.algorithms import eps
+from mindgap.algorithms.eps import EPSConfig, eps_config
+from mindgap.algorithms.eps_reward import eps_reward
+from mindgap.algorithms.sac import SACConfig, sac_init
+from mindgap.cli import main
+from mindgap.envs.terrain import load_world
+from mindgap.teachers.expectation import ExpectationTeacher
+
+
+def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
+    cfg = eps_config("fast", lam=2.5, sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250))
+    assert cfg.agent_sac().alpha == pytest.approx(2.5)  # λ H_π through SAC's own α (reward scale 1)
+    assert eps_config("fast", method="drlhp").agent_sac().alpha is None  # the baseline tunes α
+    with pytest.raises(ValueError, match="unknown method"):
+        eps_config("fast", method="ppo")
+    with pytest.raises(ValueError, match="non-negative"):
+        eps_config("fast", lam=-1.0)
+    with pytest.raises(ValueError, match="preset"):
+        eps_config("huge")
+
+
+@pytest.mark.parametrize("method", ["eps", "drlhp"])
+def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, key):
+    world = load_world("d1")
+    cfg = eps_config("fast", method=method)  # the CLI test's settings: one compiled round for both
+    # an untrained actor stands in for π_H: the round's bookkeeping does not depend on its quality
+    person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor)
+    carry = eps._init(jax.random.split(key, 2), world.params, cfg)
+    carry = eps._chunk(carry, world.params, cfg, "random")
+    before = np.asarray(carry.loop.replay.reward)
+    carry, _ = eps._feedback(carry, world.params, person, cfg, cfg.teacher)
+    assert np.asarray(carry.queries).tolist() == [cfg.per_round] * 2
+    for s in range(2):
+        c = jax.tree.map(lambda a: a[s], carry)
+        buf = c.loop.replay
+        n = int(buf.size)
+        params = eps._reward_params(world.params, c, cfg)
+        fn = eps_reward if method == "eps" else eps.expectation_reward
+        want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
+        np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
+        assert not np.allclose(np.asarray(buf.reward[:n]), before[s, :n])  # the rewards did change
+        if method == "drlhp":  # u_H standardised over the buffer (§4.3.3)
+            assert float(jnp.mean(buf.reward[:n])) == pytest.approx(0.0, abs=1e-3)
+            assert float(jnp.std(buf.reward[:n])) == pytest.approx(1.0, abs=1e-2)
+
+
+def test_cli_runs_writes_its_outputs_and_resumes(tmp_path, monkeypatch):
+    monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "run"
+    argv = ["eps", "--world", "d1", "--fast", "--seeds", "2", "--rollouts", "4", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    for name in ("curve.csv", "curve.png", "trajectories.png", "surrogate.png", "explicability.json", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+    summary = json.loads((out / "summary.json").read_text())
+    scores = json.loads((out / "explicability.json").read_text())
+    assert summary["queries"] == 30 and summary["method"] == "eps" and len(scores) == 2
+    for s in scores:  # −KL: the two parts are expectations of log-ratios, finite for a stochastic agent
+        assert np.isfinite([s["score"], s["dynamics_part"], s["policy_part"]]).all()
+        assert s["score"] == pytest.approx(-(s["dynamics_part"] + s["policy_part"]), rel=1e-4, abs=1e-3)
+    curve = (out / "curve.csv").read_text()
+    assert len(list((tmp_path / "cache").rglob("*.npz"))) == 1  # π_H trained once and cached
+    assert main(argv) == 0  # a rerun resumes from the finished checkpoint: the same curve
+    assert (out / "curve.csv").read_text() == curve
+    assert main([*argv[:-1], "--method", "ppo", "--fresh"]) == 2
+
+
+def test_eps_config_defaults_are_consistent():
+    cfg = EPSConfig()
+    cfg.check()
+    assert cfg.learning_steps() == cfg.sac.learning_starts  # no pre-training phase
