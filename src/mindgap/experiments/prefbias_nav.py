@@ -81,9 +81,10 @@ def _order(rec: dict) -> tuple:
 
 def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
     refs, oracles, learned = pc.split(records)
-    rows, curves, claims, table = [], [], [], []
+    rows, curves, claims, table, routes = [], [], [], [], []
     for spec in cfg.worlds:
         world = load_world(spec)
+        routes.append(f"{world.name}: {pc.route_name(world)}")
         recs = sorted([r for r in learned if r["world"] == spec] + [oracles[spec]] * (spec in oracles), key=_order)
         if not recs:
             continue
@@ -110,8 +111,8 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
     table_md = (
         f"nav (Figs. 16, 17, 21): greedy return under the true reward, mean ± std over {cfg.seeds} seed(s); "
         "normalised: 0 = random policy, 1 = SAC oracle; better route: share of seeds on the truly better "
-        "route (nav1: the ice corridor, nav2: the shortcut past the pit); reward error: z-scored RMS "
-        "(0 exact, 1.41 unrelated).\n\n" + pc.markdown(header, table)
+        f"route ({', '.join(routes)}); reward error: z-scored RMS (0 exact, 1.41 unrelated).\n\n"
+        + pc.markdown(header, table)
     )
     summary = {"experiment": "nav", "config": to_jsonable(cfg), "results": rows, "claims": claims, "table_md": table_md}
     pc.write_summary(out, summary)
