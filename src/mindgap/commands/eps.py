@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from ..teachers.expectation import expectation_teacher
     from ..teachers.expected_policy import ExpectedPolicyConfig
     from ..teachers.preference import TeacherConfig
-    from .learn import sac_config, write_outputs
+    from .learn import fill_from_preset, sac_config, write_outputs
 
     if args.person not in ("biased", "unbiased"):
         raise ValueError(f"--person must be biased or unbiased, got {args.person!r}")
@@ -62,15 +62,7 @@ def run(args: argparse.Namespace) -> int:
     world = load_world(args.world)
     preset = "fast" if args.fast else "full"
     base = eps_config(preset) if args.fast else EPSConfig()
-    defaults = dict(
-        steps=base.total_steps,
-        hidden=",".join(str(h) for h in base.sac.hidden),
-        learning_starts=base.sac.learning_starts,
-        batch=base.sac.batch_size,
-    )
-    for name, value in defaults.items():
-        if getattr(args, name) is None:
-            setattr(args, name, value)
+    fill_from_preset(args, base)
     over = dict(
         method=args.method,
         lam=args.lam,

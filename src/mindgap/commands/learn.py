@@ -72,6 +72,19 @@ def add_run_flags(p) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def fill_from_preset(args: argparse.Namespace, base) -> None:
+    """Give the run flags left unset (None) the values of a preset config ``base`` (steps, SAC widths, …)."""
+    defaults = dict(
+        steps=base.total_steps,
+        hidden=",".join(str(h) for h in base.sac.hidden),
+        learning_starts=base.sac.learning_starts,
+        batch=base.sac.batch_size,
+    )
+    for name, value in defaults.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+
+
 def sac_config(args: argparse.Namespace) -> SACConfig:
     """The SAC settings of the command line."""
     try:

@@ -54,20 +54,12 @@ def run(args: argparse.Namespace) -> int:
     from ..models.prefbias_nets import table_noise_map
     from ..plotting.terrain import save_fields
     from ..teachers.preference import TeacherConfig
-    from .learn import sac_config, write_outputs
+    from .learn import fill_from_preset, sac_config, write_outputs
 
     world = load_world(args.world)
     preset = "fast" if args.fast else "full"
     base = prefbias_config(preset) if args.fast else PrefBiasLoopConfig()
-    defaults = dict(
-        steps=base.total_steps,
-        hidden=",".join(str(h) for h in base.sac.hidden),
-        learning_starts=base.sac.learning_starts,
-        batch=base.sac.batch_size,
-    )
-    for name, value in defaults.items():
-        if getattr(args, name) is None:
-            setattr(args, name, value)
+    fill_from_preset(args, base)
     sac = sac_config(args)
     over = dict(
         total_steps=args.steps,
