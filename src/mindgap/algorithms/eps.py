@@ -65,7 +65,11 @@ METHODS = ("eps", "drlhp")
 
 @dataclasses.dataclass(frozen=True)
 class EPSConfig(Schedule):
-    """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument)."""
+    """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument).
+
+    The schedule's fields (steps, chunks, evaluation, SAC, budget, teacher knobs) are
+    :class:`~mindgap.algorithms.pbrl.Schedule`'s; for EPS the SAC's α is replaced by λ·reward_scale.
+    """
 
     method: str = "eps"
     """eps (Algorithm 3) or drlhp (u_H alone, the baseline of §4.4.1.1)."""
@@ -73,38 +77,16 @@ class EPSConfig(Schedule):
     """λ, the reconciliation factor of Eq. 4.6 (the dissertation tunes it in [2.0, 2.8])."""
     total_steps: int = 60_000
     """Environment steps per seed."""
-    chunk: int = 1000
-    """Steps per jitted chunk; every boundary below is a multiple of it."""
-    eval_every: int = 2000
-    """Steps between evaluations of the greedy policy under the true reward."""
-    eval_episodes: int = 10
-    """Episodes per evaluation."""
-    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
-    """SAC settings; for EPS its α is replaced by λ·reward_scale."""
     reward: RewardConfig = RewardConfig()
     """The ensemble that learns u_H."""
     dynamics: DynamicsConfig = DynamicsConfig()
     """T_A, the agent's Gaussian dynamics model (H_T)."""
-    queries: int = 800
-    """Total query budget (pairs shown)."""
     per_round: int = 80
     """Queries per feedback round."""
-    feedback_every: int = 2000
-    """Steps between feedback rounds."""
     sampler: str = "disagreement"
     """uniform, disagreement or entropy (uncertainty sampling, §4.3.3)."""
     candidates: int = 10
     """Pairs drawn per query kept (score-based samplers)."""
-    segment: int = 10
-    """Steps per segment."""
-    explore_steps: int = 0
-    """No state-entropy pre-training (read by the engine's schedule)."""
-    reset_critic: bool = False
-    """Read by the engine's schedule; EPS keeps its critic."""
-    teacher: TeacherConfig = TeacherConfig()
-    """Answering knobs of the simulated person (β, mistakes, skips, …)."""
-    seed: int = 0
-    """Base seed; seed i of a run uses seed + i."""
 
     def check(self) -> None:
         if self.method not in METHODS:

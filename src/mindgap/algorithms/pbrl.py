@@ -54,12 +54,44 @@ from .sac_loop import LoopState, evaluate, loop_init, run_chunk
 METHODS = ("sac", "pebble", "drlhp")
 
 
+@dataclasses.dataclass(frozen=True)
 class Schedule:
-    """What every run config of the engine shares: the phase boundaries and their checks.
+    """What every run config of the engine shares: the schedule, the budget and the teacher's knobs.
 
-    Mixed into frozen dataclasses with ``total_steps``, ``chunk``, ``eval_every``,
-    ``feedback_every``, ``explore_steps`` and ``sac`` (read by :func:`drive`).
+    PEBBLE/DRLHP/SAC (:class:`PbRLConfig`), PrefBias and EPS extend it with their models
+    and redeclare a field where their default differs; :func:`drive` reads these fields.
     """
+
+    method: str = "pebble"
+    """Which learner (each config lists its own)."""
+    total_steps: int = 40_000
+    """Environment steps per seed."""
+    chunk: int = 1000
+    """Steps per jitted chunk; every boundary below is a multiple of it."""
+    eval_every: int = 2000
+    """Steps between evaluations of the greedy policy under the true reward."""
+    eval_episodes: int = 10
+    """Episodes per evaluation."""
+    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
+    """The agent's SAC."""
+    queries: int = 800
+    """Total query budget (pairs shown)."""
+    per_round: int = 50
+    """Queries per feedback round."""
+    feedback_every: int = 2000
+    """Steps between feedback rounds."""
+    segment: int = 10
+    """Steps per segment."""
+    explore_steps: int = 0
+    """State-entropy pre-training steps (PEBBLE's phase; 0 for none)."""
+    knn: int = 5
+    """k of the k-NN entropy estimate."""
+    reset_critic: bool = False
+    """Re-initialise the critic after pre-training (PEBBLE)."""
+    teacher: TeacherConfig = TeacherConfig()
+    """Answering knobs of the simulated person (β, mistakes, skips, …)."""
+    seed: int = 0
+    """Base seed; seed i of a run uses seed + i."""
 
     def check_schedule(self) -> None:
         for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
@@ -80,41 +112,14 @@ class Schedule:
 
 @dataclasses.dataclass(frozen=True)
 class PbRLConfig(Schedule):
-    """One run of the engine (all seeds share it)."""
+    """One run of the engine (all seeds share it): ``method`` sac (oracle on the true reward), pebble or drlhp."""
 
-    method: str = "pebble"
-    """sac (oracle on the true reward), pebble or drlhp."""
-    total_steps: int = 40_000
-    """Environment steps per seed."""
-    chunk: int = 1000
-    """Steps per jitted chunk; every boundary below is a multiple of it."""
-    eval_every: int = 2000
-    """Steps between evaluations of the greedy policy under the true reward."""
-    eval_episodes: int = 10
-    """Episodes per evaluation."""
-    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
     reward: RewardConfig = RewardConfig()
-    queries: int = 800
-    """Total query budget (pairs shown)."""
-    per_round: int = 50
-    """Queries per feedback round."""
-    feedback_every: int = 2000
-    """Steps between feedback rounds."""
+    """The reward ensemble."""
     sampler: str = "disagreement"
     """uniform, disagreement or entropy."""
     candidates: int = 10
     """Pairs drawn per query kept (score-based samplers)."""
-    segment: int = 10
-    """Steps per segment."""
-    explore_steps: int = 0
-    """State-entropy pre-training steps (PEBBLE)."""
-    knn: int = 5
-    """k of the k-NN entropy estimate."""
-    reset_critic: bool = False
-    """Re-initialise the critic after pre-training (PEBBLE)."""
-    teacher: TeacherConfig = TeacherConfig()
-    seed: int = 0
-    """Base seed; seed i of a run uses seed + i."""
 
     def check(self) -> None:
         if self.method not in METHODS:

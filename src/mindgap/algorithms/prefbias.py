@@ -50,44 +50,22 @@ from .sac_loop import LoopState, loop_init, run_chunk
 
 @dataclasses.dataclass(frozen=True)
 class PrefBiasLoopConfig(Schedule):
-    """One PrefBias run (all seeds share it; hashable, a static jit argument)."""
+    """One PrefBias run (all seeds share it; hashable, a static jit argument); the schedule's fields are :class:`Schedule`'s."""
 
     method: str = "prefbias"
     """Always 'prefbias' (the engine's schedule reads it)."""
-    total_steps: int = 40_000
-    """Environment steps per seed."""
-    chunk: int = 1000
-    """Steps per jitted chunk; every boundary below is a multiple of it."""
-    eval_every: int = 2000
-    """Steps between evaluations of the greedy policy under the true reward."""
-    eval_episodes: int = 10
-    """Episodes per evaluation."""
-    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
     prefbias: PrefBiasConfig = PrefBiasConfig()
     """Inference of r_w and f_φ, and the dynamics model f_ψ (``prefbias.dynamics``)."""
-    queries: int = 800
-    """Total query budget (pairs shown)."""
-    per_round: int = 50
-    """Queries per feedback round (K)."""
-    feedback_every: int = 2000
-    """Steps between feedback rounds."""
     sampler: str = "preference_disagreement"
     """uniform, disagreement, entropy or preference_disagreement (§3.3.3.3)."""
     candidates: int = 3
     """Random pairs drawn per query kept (3K candidates, §3.3.3.3)."""
     samples: int = 8
     """Posterior draws for the disagreement and entropy samplers."""
-    segment: int = 10
-    """Steps per segment."""
     explore_steps: int = 4000
     """State-entropy pre-training steps (as PEBBLE; 0 for none)."""
-    knn: int = 5
-    """k of the k-NN entropy estimate."""
     reset_critic: bool = True
     """Re-initialise the critic after pre-training (as PEBBLE)."""
-    teacher: TeacherConfig = TeacherConfig()
-    seed: int = 0
-    """Base seed; seed i of a run uses seed + i."""
 
     def check(self) -> None:
         if self.method != "prefbias":
