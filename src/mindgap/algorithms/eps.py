@@ -56,7 +56,7 @@ from ..teachers.expectation import ExpectationTeacher
 from ..teachers.preference import TeacherConfig
 from .eps_reward import EPSRewardParams, eps_reward, eps_sac_config, normalised_u, u_norm_from_replay
 from .explicability import explicability
-from .pbrl import Schedule, _fingerprint, drive
+from .pbrl import FAST_SCHEDULE, Schedule, _fingerprint, drive
 from .sac import SACConfig
 from .sac_loop import LoopState, loop_init, run_chunk
 
@@ -105,15 +105,7 @@ class EPSConfig(Schedule):
 
 
 _FAST = dict(
-    total_steps=1500,
-    chunk=250,
-    eval_every=500,
-    eval_episodes=4,
-    feedback_every=250,
-    queries=30,
-    per_round=10,
-    segment=5,
-    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
+    **FAST_SCHEDULE,
     reward=RewardConfig(members=2, hidden=(8, 8), updates=10, batch_size=8),
     dynamics=DynamicsConfig(hidden=(8, 8), max_epochs=3, steps_per_epoch=5, batch_size=32),
 )

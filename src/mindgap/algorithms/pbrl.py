@@ -110,6 +110,20 @@ class Schedule:
         return dataclasses.asdict(self)
 
 
+FAST_SCHEDULE = dict(
+    total_steps=1500,
+    chunk=250,
+    eval_every=500,
+    eval_episodes=4,
+    feedback_every=250,
+    queries=30,
+    per_round=10,
+    segment=5,
+    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
+)
+"""The schedule of the learners' ``fast`` presets (seconds once compiled; tests and dry runs)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class PbRLConfig(Schedule):
     """One run of the engine (all seeds share it): ``method`` sac (oracle on the true reward), pebble or drlhp."""

@@ -42,9 +42,8 @@ from ..models.prefbias_nets import belief_noise_map, posterior_reward
 from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
-from .pbrl import Schedule, drive, host_answers, teacher_setup
+from .pbrl import FAST_SCHEDULE, Schedule, drive, host_answers, teacher_setup
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
-from .sac import SACConfig
 from .sac_loop import LoopState, loop_init, run_chunk
 
 
@@ -79,16 +78,8 @@ class PrefBiasLoopConfig(Schedule):
 
 
 _FAST = dict(
-    total_steps=1500,
-    chunk=250,
-    eval_every=500,
-    eval_episodes=4,
-    feedback_every=250,
-    queries=30,
-    per_round=10,
-    segment=5,
+    **FAST_SCHEDULE,
     explore_steps=250,
-    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
     prefbias=PrefBiasConfig(
         reward_hidden=(8, 8),
         updates=10,
