@@ -9,7 +9,7 @@ import pytest
 
 from mindgap.algorithms import eps
 from mindgap.algorithms.eps import EPSConfig, eps_config
-from mindgap.algorithms.eps_reward import eps_reward
+from mindgap.algorithms.eps_reward import environment_entropy, eps_reward
 from mindgap.algorithms.sac import SACConfig, sac_init
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
@@ -48,6 +48,9 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, k
         want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
         np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
         assert not np.allclose(np.asarray(buf.reward[:n]), before[s, :n])  # the rewards did change
+        if method == "eps":  # H_T centred over the buffer (EPSConfig.centre_entropy)
+            h = environment_entropy(params, buf.obs[:n], buf.act[:n])
+            assert float(jnp.mean(h)) == pytest.approx(0.0, abs=1e-3) and float(c.h_shift) != 0.0
         if method == "drlhp":  # u_H standardised over the buffer (§4.3.3)
             assert float(jnp.mean(buf.reward[:n])) == pytest.approx(0.0, abs=1e-3)
             assert float(jnp.std(buf.reward[:n])) == pytest.approx(1.0, abs=1e-2)
