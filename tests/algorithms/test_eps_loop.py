@@ -28,10 +28,10 @@ def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
         eps_config("huge")
 
 
-@pytest.mark.parametrize("method", ["eps", "drlhp"])
-def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, key):
+@pytest.mark.parametrize("method, centre", [("eps", False), ("eps", True), ("drlhp", False)])
+def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, centre, key):
     world = load_world("d1")
-    cfg = eps_config("fast", method=method)  # the CLI test's settings: one compiled round for both
+    cfg = eps_config("fast", method=method, centre_entropy=centre)  # eps, False: the CLI test's round
     # an untrained actor stands in for π_H: the round's bookkeeping does not depend on its quality
     person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor)
     carry = eps._init(jax.random.split(key, 2), world.params, cfg)
@@ -48,9 +48,11 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, k
         want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
         np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
         assert not np.allclose(np.asarray(buf.reward[:n]), before[s, :n])  # the rewards did change
-        if method == "eps":  # H_T centred over the buffer (EPSConfig.centre_entropy)
+        if centre:  # H_T centred over the buffer (EPSConfig.centre_entropy)
             h = environment_entropy(params, buf.obs[:n], buf.act[:n])
             assert float(jnp.mean(h)) == pytest.approx(0.0, abs=1e-3) and float(c.h_shift) != 0.0
+        else:
+            assert float(c.h_shift) == 0.0  # Eq. 4.6 as written
         if method == "drlhp":  # u_H standardised over the buffer (§4.3.3)
             assert float(jnp.mean(buf.reward[:n])) == pytest.approx(0.0, abs=1e-3)
             assert float(jnp.std(buf.reward[:n])) == pytest.approx(1.0, abs=1e-2)

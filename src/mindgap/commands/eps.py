@@ -31,9 +31,9 @@ def add_parser(sub) -> None:
     p.add_argument("--beta", type=float, help="person's rationality (default: deterministic answers)")
     p.add_argument("--mistake", type=float, default=0.0, help="person's probability of a flipped answer")
     p.add_argument(
-        "--raw-entropy",
+        "--centre-entropy",
         action="store_true",
-        help="keep H_T's constant (Eq. 4.6 as written) instead of centring it over the buffer",
+        help="subtract H_T's mean over the buffer (default: Eq. 4.6 as written, its constant kept)",
     )
     p.add_argument("--rollouts", type=int, default=100, help="rollouts per seed for the explicability score")
     p.add_argument("--cache", help="where the person's expected policy π_H is cached (default ~/.cache/mindgap)")
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         sac=sac_config(args),
         sampler=args.sampler,
-        centre_entropy=not args.raw_entropy,
+        centre_entropy=args.centre_entropy,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )
     for name in ("queries", "per_round"):
