@@ -36,7 +36,6 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from .. import rng
 from ..feedback.queries import SAMPLERS, select_queries
@@ -63,7 +62,7 @@ from .eps_reward import (
     u_norm_from_replay,
 )
 from .explicability import explicability
-from .pbrl import FAST_SCHEDULE, Schedule, _fingerprint, drive
+from .pbrl import FAST_SCHEDULE, Schedule, drive, fingerprint, run_record
 from .sac import SACConfig
 from .sac_loop import LoopState, loop_init, run_chunk
 
@@ -263,12 +262,11 @@ def train(
         ``paths``, ``config``, ``carry``).
     """
     cfg.check()
-    if seeds < 1:
-        raise ValueError("seeds must be at least 1")
     params = world.params
     tcfg = cfg.teacher
-    meta = {"world": world.name, "source": world.source, "world_hash": _fingerprint(world), "seeds": seeds}
-    meta.update(teacher=f"expectation:{person_name}", person_hash=_person_hash(person), config=cfg.as_dict())
+    meta = run_record(
+        world, seeds, teacher=f"expectation:{person_name}", person_hash=fingerprint(person), config=cfg.as_dict()
+    )
     carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
 
     def feedback(c):
@@ -279,15 +277,6 @@ def train(
 
     # the engine's schedule reads cfg.sac (learning_starts) — the same for the agent's SAC
     return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
-
-
-def _person_hash(person: ExpectationTeacher) -> str:
-    import hashlib
-
-    h = hashlib.sha256()
-    for leaf in jax.tree.leaves(person):
-        h.update(np.asarray(leaf).tobytes())
-    return h.hexdigest()[:16]
 
 
 def explicability_scores(key, world_params, person: ExpectationTeacher, actors, episodes: int = 100):

@@ -226,13 +226,6 @@ def _learn(carry: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
     return jax.vmap(lambda *xs: _learn_one(*xs, cfg))(carry, seg_a, seg_b, labels, answered, k_r)
 
 
-def _feedback_host(carry: Carry, teacher: HostTeacher, cfg: PbRLConfig):
-    """A feedback round with a teacher outside jit (people): jitted selection, the call, jitted learning."""
-    carry, seg_a, seg_b, _, k_r = _select(carry, cfg)
-    labels, answered = host_answers(teacher, seg_a, seg_b, carry.queries, cfg.per_round, cfg.queries)
-    return _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg)
-
-
 def host_answers(teacher: HostTeacher, seg_a: Segments, seg_b: Segments, queries, per_round: int, budget: int):
     """Ask a host teacher every seed's queries ``[S, K, L, ·]`` in one call.
 
@@ -293,12 +286,12 @@ def _evaluate(carry, world_params, episodes: int, step: int, base_seed: int):
     return jax.vmap(lambda k, a: evaluate(k, a, world_params, episodes))(keys, carry.loop.sac.params.actor)
 
 
-def _fingerprint(world) -> str:
-    """Hash of everything that defines the world (layout, rewards, dynamics, beliefs)."""
+def fingerprint(tree) -> str:
+    """Hash of a pytree's arrays (a world with its beliefs, a simulated person): recorded with a run to refuse resuming another."""
     import hashlib
 
     h = hashlib.sha256()
-    for leaf in jax.tree.leaves((world.params, world.beliefs)):
+    for leaf in jax.tree.leaves(tree):
         h.update(np.asarray(leaf).tobytes())
     return h.hexdigest()[:16]
 
@@ -326,20 +319,51 @@ def train(
         dict with ``curve`` (rows of seed, step, return, queries), ``final_returns``
         [seeds, episodes], ``paths`` (per seed, greedy rollouts) and ``config``.
     """
+    return run_engine(
+        world,
+        cfg,
+        seeds,
+        teacher,
+        belief,
+        out,
+        progress,
+        fresh,
+        init=_init,
+        feedback=_feedback,
+        select=_select,
+        learn=_learn,
+        chunk=_chunk,
+    )
+
+
+def run_engine(world, cfg, seeds, teacher, belief, out, progress, fresh, *, init, feedback, select, learn, chunk):
+    """The body of a learner's ``train`` (PEBBLE/DRLHP/SAC here, PrefBias): set up the teacher, run :func:`drive`.
+
+    Args:
+        init: ``(keys [S], world params, cfg) → carry``.
+        feedback: one jitted round of every seed with the simulated person,
+            ``(carry, world params, belief params, cfg, teacher cfg) → (carry, info)``.
+        select, learn: the round's two jitted halves, ``(carry, cfg) → (carry, seg_a, seg_b, k_t, k_r)``
+            and ``(carry, seg_a, seg_b, labels, answered, k_r, cfg) → (carry, info)``, around a host
+            teacher (people) asked outside jit.
+        chunk: ``(carry, world params, cfg, phase) → carry``.
+    """
     cfg.check()
     host, belief_params, tcfg, meta = teacher_setup(world, cfg, seeds, teacher, belief)
     params = world.params
-    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+    carry = init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
 
-    def feedback(c):
+    def one_round(c):
         if host is None:
-            return _feedback(c, params, belief_params, cfg, tcfg)[0]
-        return _feedback_host(c, host, cfg)[0]
+            return feedback(c, params, belief_params, cfg, tcfg)[0]
+        c, seg_a, seg_b, _, k_r = select(c, cfg)
+        labels, answered = host_answers(host, seg_a, seg_b, c.queries, cfg.per_round, cfg.queries)
+        return learn(c, seg_a, seg_b, labels, answered, k_r, cfg)[0]
 
-    def chunk(c, phase):
-        return _chunk(c, params, cfg, phase)
+    def one_chunk(c, phase):
+        return chunk(c, params, cfg, phase)
 
-    return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
+    return drive(world, cfg, seeds, meta, carry, one_round, one_chunk, out=out, progress=progress, fresh=fresh)
 
 
 def teacher_setup(world, cfg, seeds: int, teacher, belief: str | None):
@@ -351,14 +375,19 @@ def teacher_setup(world, cfg, seeds: int, teacher, belief: str | None):
     host = teacher if callable(teacher) else None
     if host is None and teacher not in ("biased", "true"):
         raise ValueError(f"teacher must be 'biased', 'true' or a host teacher, got {teacher!r}")
-    if seeds < 1:
-        raise ValueError("seeds must be at least 1")
     belief_params = world.belief(belief) if teacher == "biased" else None
     tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher == "biased")
-    meta = {"world": world.name, "source": world.source, "world_hash": _fingerprint(world), "seeds": seeds}
-    meta.update(teacher=teacher if host is None else host.name, belief=belief)
+    meta = run_record(world, seeds, teacher=teacher if host is None else host.name, belief=belief)
     meta["config"] = cfg.as_dict()
     return host, belief_params, tcfg, meta
+
+
+def run_record(world, seeds: int, **extra) -> dict:
+    """What a run folder's config.json records of the world and seeds (checked; resuming compares it), plus ``extra``."""
+    if seeds < 1:
+        raise ValueError("seeds must be at least 1")
+    meta = {"world": world.name, "source": world.source, "world_hash": fingerprint((world.params, world.beliefs))}
+    return {**meta, "seeds": seeds, **extra}
 
 
 def drive(world, cfg, seeds: int, meta: dict, carry, feedback, chunk, *, out=None, progress=True, fresh=False) -> dict:

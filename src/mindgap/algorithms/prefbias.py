@@ -34,7 +34,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import rng
 from ..feedback.prefbias_queries import SAMPLERS, select_queries
 from ..feedback.replay import relabel
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
@@ -42,7 +41,7 @@ from ..models.prefbias_nets import belief_noise_map, posterior_reward
 from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
-from .pbrl import FAST_SCHEDULE, Schedule, drive, host_answers, teacher_setup
+from .pbrl import FAST_SCHEDULE, Schedule, run_engine
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
 from .sac_loop import LoopState, loop_init, run_chunk
 
@@ -197,13 +196,6 @@ def _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg: PrefBiasLoopConfig):
     return jax.vmap(lambda *xs: _learn_one(*xs, cfg))(carry, seg_a, seg_b, labels, answered, k_r)
 
 
-def _feedback_host(carry, teacher: HostTeacher, cfg: PrefBiasLoopConfig):
-    """A round with a teacher outside jit: jitted f_ψ and selection, the call, jitted inference."""
-    carry, seg_a, seg_b, _, k_r = _select(carry, cfg)
-    labels, answered = host_answers(teacher, seg_a, seg_b, carry.queries, cfg.per_round, cfg.queries)
-    return _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg)
-
-
 def _chunk(carry: PrefBiasCarry, world_params, cfg: PrefBiasLoopConfig, phase: str) -> PrefBiasCarry:
     learned = phase == "train"
     loop = jax.vmap(
@@ -254,20 +246,21 @@ def train(
         belief's noise per cell (:func:`~mindgap.models.prefbias_nets.belief_noise_map`,
         NaN on walls), and ``dynamics_noise`` [seeds, H, W], that of the agent's f_ψ.
     """
-    cfg.check()
-    host, belief_params, tcfg, meta = teacher_setup(world, cfg, seeds, teacher, belief)
-    params = world.params
-    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
-
-    def feedback(c):
-        if host is None:
-            return _feedback(c, params, belief_params, cfg, tcfg)[0]
-        return _feedback_host(c, host, cfg)[0]
-
-    def chunk(c, phase):
-        return _chunk(c, params, cfg, phase)
-
-    res = drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
-    belief_map, agent_map = _noise_maps(res["carry"], params, cfg.prefbias.dynamics.min_std)
+    res = run_engine(
+        world,
+        cfg,
+        seeds,
+        teacher,
+        belief,
+        out,
+        progress,
+        fresh,
+        init=_init,
+        feedback=_feedback,
+        select=_select,
+        learn=_learn,
+        chunk=_chunk,
+    )
+    belief_map, agent_map = _noise_maps(res["carry"], world.params, cfg.prefbias.dynamics.min_std)
     res["belief_noise"], res["dynamics_noise"] = np.asarray(belief_map), np.asarray(agent_map)
     return res
