@@ -3,6 +3,18 @@
 A segment is ``length`` consecutive transitions of one episode. Episodes may end inside
 a segment (goal, pit, horizon): the steps after the end are masked out, so they count
 neither for the simulated person nor for the reward model.
+
+With ``absorbing=True`` the steps after a *terminal* transition (goal or pit; not the
+horizon, which only truncates the episode) are kept as steps in an absorbing state
+instead (Kostrikov et al. 2019, "Discriminator-Actor-Critic"): once an episode
+has terminated the agent stays, in the MDP's own terms, in a state where every step earns
+the same reward — truly 0, under a learned model a learned constant ``r_abs``. Dropping
+those steps makes a segment that reaches the goal early *shorter* than one that idles
+before it, and a learned return, a sum of bounded per-step rewards, then favours idling
+(the termination bias of learned rewards that Kostrikov et al. describe). With absorbing
+steps both segments have the same length and the reward model can learn what the end of
+an episode is worth. Steps past the end of the buffer's contiguous episode for any other
+reason (a horizon truncation, the ring pointer) stay masked out.
 """
 
 from __future__ import annotations
@@ -16,7 +28,10 @@ from .replay import Replay
 
 
 class Segments(NamedTuple):
-    """obs, next_obs [K, L, d]; act [K, L, a]; mask [K, L] (True for real steps)."""
+    """obs, next_obs [K, L, d]; act [K, L, a]; mask [K, L] (True for real steps).
+
+    A plain ``Segments`` has no absorbing steps; :class:`AbsorbingSegments` adds them.
+    """
 
     obs: jax.Array
     act: jax.Array
@@ -24,17 +39,54 @@ class Segments(NamedTuple):
     mask: jax.Array
 
 
-def sample_segments(buf: Replay, key: jax.Array, count: int, length: int) -> Segments:
-    """``count`` segments starting at uniformly drawn stored transitions."""
+class AbsorbingSegments(NamedTuple):
+    """The fields of :class:`Segments` and ``absorbed [K, L]``: True for the steps after a terminal transition.
+
+    ``mask`` and ``absorbed`` never overlap. A separate type rather than a fifth field of
+    :class:`Segments`, so that code building ``Segments`` from its four fields (the study
+    app, stored preferences) keeps working unchanged; :func:`absorbed_steps` reads either.
+    """
+
+    obs: jax.Array
+    act: jax.Array
+    next_obs: jax.Array
+    mask: jax.Array
+    absorbed: jax.Array
+
+
+def absorbed_steps(seg) -> jax.Array:
+    """The absorbing steps ``[K, L]`` of ``seg``: all False for a plain :class:`Segments`."""
+    absorbed = getattr(seg, "absorbed", None)
+    return jnp.zeros(jnp.shape(seg.mask), bool) if absorbed is None else absorbed
+
+
+def with_absorbing(seg, absorbing: bool):
+    """``seg`` as :class:`AbsorbingSegments` (no absorbing steps added) or as plain :class:`Segments` (any dropped)."""
+    if absorbing:
+        return AbsorbingSegments(seg.obs, seg.act, seg.next_obs, seg.mask, absorbed_steps(seg))
+    return Segments(seg.obs, seg.act, seg.next_obs, seg.mask)
+
+
+def sample_segments(buf: Replay, key: jax.Array, count: int, length: int, absorbing: bool = False):
+    """``count`` segments starting at uniformly drawn stored transitions.
+
+    Returns:
+        :class:`Segments`, or with ``absorbing`` :class:`AbsorbingSegments` whose steps after a
+        terminal transition are marked ``absorbed`` (the mask is the same either way).
+    """
     start = jax.random.randint(key, (count,), 0, jnp.maximum(buf.size, 1))
     idx = (start[:, None] + jnp.arange(length)[None, :]) % buf.capacity  # [K, L]
     ep = buf.ep_step[idx]
     contiguous = (ep == ep[:, :1] + jnp.arange(length)[None, :]) & (ep >= 0)
     ended_before = jnp.cumsum(buf.terminal[idx], axis=1) - buf.terminal[idx]  # a terminal earlier in the segment
     mask = jnp.cumprod(contiguous & (ended_before == 0), axis=1).astype(bool)
-    return Segments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask)
+    if not absorbing:
+        return Segments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask)
+    # the last real step was terminal: everything after it is absorbing
+    ended = jnp.cumsum(mask & buf.terminal[idx], axis=1) - (mask & buf.terminal[idx]) > 0
+    return AbsorbingSegments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask, ended & ~mask)
 
 
-def take(seg: Segments, idx: jax.Array) -> Segments:
+def take(seg, idx: jax.Array):
     """The segments at ``idx``."""
     return jax.tree.map(lambda x: x[idx], seg)

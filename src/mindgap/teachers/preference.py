@@ -6,6 +6,12 @@ the higher score with Bradley–Terry probability ``σ(β (S₁ − S₂))``. Th
 (Lee et al. 2021b) make the answers less than ideal: ``gamma`` (myopia), ``mistake``
 (flip probability), ``skip`` and ``equal`` thresholds. With ``belief=None`` the log T_H
 term is off and this is the ordinary B-Pref teacher.
+
+Only the real steps of a segment (``mask``) count. The absorbing steps after a terminal
+transition (:class:`~mindgap.feedback.segments.AbsorbingSegments`; Kostrikov et al. 2019)
+add nothing: after the goal or a pit the true reward is 0 and nothing moves, so there is
+no log T_H term either — the person judges the episode that happened, while the learner
+models the same steps with its absorbing-state reward.
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ class TeacherConfig:
 
 
 def segment_scores(seg: Segments, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
-    """The person's score of each segment. seg [K, L, ·] → [K]."""
+    """The person's score of each segment. seg [K, L, ·] → [K]; absorbing steps score 0."""
 
     def step_score(o, a, o2):
         s, s2 = position(o, world_params), position(o2, world_params)
