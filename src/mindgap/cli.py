@@ -4,6 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
+mindgap reproduce nav|priors|sampling|eps|lambda [--fast] [--seeds N] [--worlds W,W] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
@@ -21,7 +22,8 @@ from dataclasses import replace
 from pathlib import Path
 
 DOMAINS = ("grid7", "coffee")
-EXPERIMENTS = ("table1", "coffee", "nav", "priors", "sampling")
+EXPERIMENTS = ("table1", "coffee", "nav", "priors", "sampling", "eps", "lambda")
+TERRAIN_EXPERIMENTS = ("nav", "priors", "sampling", "eps", "lambda")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -32,6 +34,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
     r.add_argument("--fast", action="store_true", help="the quick preset (seconds to minutes)")
     r.add_argument("--seeds", type=int, help="seeds per setting (overrides the preset)")
+    r.add_argument("--worlds", help="terrain experiments: a comma-separated subset of the worlds (names or files)")
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
@@ -66,8 +69,12 @@ def _parser() -> argparse.ArgumentParser:
         choices=("tied", "per-sa", "full", "factored"),
         help="belief parameterisation (grid7: tied by default; coffee: factored by default)",
     )
-    g.add_argument("--robot", help="coffee: robot type of the simulated person, or of a ratings file without a robot column")
-    g.add_argument("--normalise", default="minmax", choices=("minmax", "none"), help="coffee: per-person rating scaling")
+    g.add_argument(
+        "--robot", help="coffee: robot type of the simulated person, or of a ratings file without a robot column"
+    )
+    g.add_argument(
+        "--normalise", default="minmax", choices=("minmax", "none"), help="coffee: per-person rating scaling"
+    )
     g.add_argument("--no-filter", action="store_true", help="coffee: keep people who fail the sanity check")
     g.add_argument("--estimator", default="pathwise", choices=("pathwise", "score"), help="ELBO gradient estimator")
     g.add_argument("--minus", action="store_true", help="GeReL⁻: freeze the belief at the true dynamics")
@@ -131,14 +138,16 @@ def _reproduce(args) -> int:
 
     if args.assemble and (args.fresh or args.shard):
         raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
+    if args.worlds and args.name not in TERRAIN_EXPERIMENTS:
+        raise ValueError(f"--worlds belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
     if args.name == "coffee":
         from .experiments import coffee_cli
 
         return coffee_cli.reproduce(args, _shard(args.shard))
-    if args.name in ("nav", "priors", "sampling"):
-        from .experiments import prefbias_cli
+    if args.name in TERRAIN_EXPERIMENTS:
+        from .experiments import terrain_cli
 
-        return prefbias_cli.reproduce(args)
+        return terrain_cli.reproduce(args)
     if args.participants is not None:
         raise ValueError("--participants belongs to the coffee study")
     cfg = table1.preset("fast" if args.fast else "full")

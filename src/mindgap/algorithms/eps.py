@@ -63,7 +63,7 @@ from .eps_reward import (
 )
 from .explicability import explicability
 from .pbrl import FAST_SCHEDULE, Schedule, drive, fingerprint, run_record
-from .sac import SACConfig
+from .sac import SACConfig, actor_dist
 from .sac_loop import LoopState, loop_init, run_chunk
 
 METHODS = ("eps", "drlhp")
@@ -279,11 +279,15 @@ def train(
     return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
 
 
-def explicability_scores(key, world_params, person: ExpectationTeacher, actors, episodes: int = 100):
+def explicability_scores(
+    key, world_params, person: ExpectationTeacher, actors, episodes: int = 100, agent_dist=actor_dist
+):
     """Explicability score (Eq. 4.4) of each seed's policy over ``episodes`` stochastic rollouts.
 
     Args:
-        actors: SAC actor parameters with a leading seed axis.
+        actors: the policies' parameters with a leading seed axis: SAC actors, or what
+            ``agent_dist`` reads (e.g. a :class:`~mindgap.algorithms.policy_shaping.ShapedPolicy`
+            with :func:`~mindgap.algorithms.policy_shaping.shaped_dist`).
 
     Returns:
         one dict per seed: score, its standard error, its dynamics and policy parts
@@ -294,7 +298,7 @@ def explicability_scores(key, world_params, person: ExpectationTeacher, actors, 
     out = []
     for s, k in enumerate(jax.random.split(key, seeds)):
         actor = jax.tree.map(lambda a: a[s], actors)
-        e = explicability(k, world_params, person.belief, actor, person.policy, episodes)
+        e = explicability(k, world_params, person.belief, actor, person.policy, episodes, agent_dist)
         out.append(
             {
                 "score": float(e.score),

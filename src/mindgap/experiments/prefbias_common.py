@@ -144,26 +144,45 @@ def pebble_job(world: str, learn: Learners, queries: int) -> Job:
     return Job(f"{world}/pebble-q{queries}", world, "pebble", f"PEBBLE ({queries} queries)", cfg, {"queries": queries})
 
 
+def compute_job(folder: RunFolder, job: Job, seeds: int, *, fresh: bool, progress: bool) -> dict:
+    """The record of one job of these experiments: the reference or a learner's training."""
+    world = load_world(job.world)
+    if job.method == "reference":
+        return _reference(world, job.cfg)
+    return _learn(world, job, seeds, job_dir(folder, job), fresh=fresh, progress=progress)
+
+
+def job_dir(folder: RunFolder, job: Job) -> Path:
+    """Where a job keeps its engine checkpoint (and anything else it stores beside its record)."""
+    return folder.root / "train" / job.key.replace("/", "__")
+
+
 def run_jobs(
-    folder: RunFolder, jobs: list[Job], seeds: int, *, fresh: bool, progress: bool, assemble_only: bool
+    folder: RunFolder,
+    jobs: list[Job],
+    seeds: int,
+    *,
+    fresh: bool,
+    progress: bool,
+    assemble_only: bool,
+    compute=compute_job,
 ) -> dict[str, dict]:
-    """Each job's record, computing (or resuming) the unfinished ones unless ``assemble_only``."""
+    """Each job's record, computing (or resuming) the unfinished ones unless ``assemble_only``.
+
+    ``compute(folder, job, seeds, fresh=, progress=) → dict`` makes a job's record (jobs run
+    in order, so a job may read the records of those before it).
+    """
     records = {}
     for i, job in enumerate(jobs):
         rec = folder.done(job.key)
         if rec is None and not assemble_only:
             t0 = time.perf_counter()
-            world = load_world(job.world)
-            if job.method == "reference":
-                rec = _reference(world, job.cfg)
-            else:
-                out = folder.root / "train" / job.key.replace("/", "__")
-                rec = _learn(world, job, seeds, out, fresh=fresh, progress=progress)
+            rec = compute(folder, job, seeds, fresh=fresh, progress=progress)
             rec.update(key=job.key, world=job.world, method=job.method, label=job.label, tags=job.tags)
             rec["seconds"] = time.perf_counter() - t0
             folder.save(job.key, rec)
             if progress:
-                what = f"final return {_pm(rec['final'])}" if "final" in rec else f"random {rec['random_return']:.1f}"
+                what = f"final return {_pm(rec['final'])}" if "final" in rec else rec.get("done", "done")
                 print(f"[{i + 1}/{len(jobs)}] {job.key}: {what} ({rec['seconds']:.0f} s)", flush=True)
         if rec is not None:
             records[job.key] = rec
@@ -186,6 +205,7 @@ def _reference(world, cfg: ReferenceConfig) -> dict:
     ret = np.asarray(rew).sum(1)
     chk = check_world(world, n=cfg.plan_resolution, count=cfg.plan_rollouts, seed=cfg.seed)
     return {
+        "done": f"random {ret.mean():.1f}",
         "random_return": float(ret.mean()),
         "random_return_std": float(ret.std()),
         "plan_return": chk.reference_return,
@@ -220,12 +240,12 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
         person = np.asarray(table_noise_map(world.belief()))
         rec["belief_error"] = noise_rms_error(res["belief_noise"], person).tolist()
         rec["dynamics_error"] = noise_rms_error(res["dynamics_noise"], person).tolist()
-        rec["belief_map"] = _nan_to_none(res["belief_noise"].mean(0))  # NaN on walls in every seed
-        rec["dynamics_map"] = _nan_to_none(res["dynamics_noise"].mean(0))
+        rec["belief_map"] = nan_to_none(res["belief_noise"].mean(0))  # NaN on walls in every seed
+        rec["dynamics_map"] = nan_to_none(res["dynamics_noise"].mean(0))
     return rec
 
 
-def _nan_to_none(a) -> list:
+def nan_to_none(a) -> list:
     return [[None if not np.isfinite(x) else round(float(x), 5) for x in row] for row in np.asarray(a)]
 
 
@@ -405,16 +425,30 @@ def _pm(values) -> str:
 # running and reporting
 
 
-def run_experiment(cfg, out: Path, jobs: list[Job], write_outputs, *, fresh: bool, progress: bool, assemble_only: bool):
+def run_experiment(
+    cfg,
+    out: Path,
+    jobs: list[Job],
+    write_outputs,
+    *,
+    fresh: bool,
+    progress: bool,
+    assemble_only: bool,
+    compute=compute_job,
+    references=("reference",),
+):
     """Run (or resume) ``jobs`` in the run folder ``out``, then ``write_outputs(cfg, out, records)``.
 
-    ``assemble_only`` writes the outputs from the finished jobs and runs nothing.
+    ``assemble_only`` writes the outputs from the finished jobs and runs nothing; ``compute``
+    makes a job's record (:func:`run_jobs`); ``references`` are the methods that learn nothing.
     Returns the summary, with ``missing_jobs``: how many jobs have no record yet.
     """
     out = Path(out)
     folder = RunFolder(out, cfg, fresh=fresh)
-    records = run_jobs(folder, jobs, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only)
-    if not any(r["method"] != "reference" for r in records.values()):
+    records = run_jobs(
+        folder, jobs, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only, compute=compute
+    )
+    if not any(r["method"] not in references for r in records.values()):
         raise RuntimeError(f"{out} has no finished learner jobs to assemble")
     summary = write_outputs(cfg, out, records)
     summary["missing_jobs"] = len(jobs) - len(records)

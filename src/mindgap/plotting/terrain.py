@@ -87,12 +87,18 @@ def save_world(
     return path
 
 
-def save_panels(path: str | Path, panels: Sequence[tuple[str, object, Mapping]], colours=None) -> Path:
-    """Several maps side by side: ``[(title, params, {label: paths}), …]``."""
+def save_panels(
+    path: str | Path, panels: Sequence[tuple[str, object, Mapping]], colours=None, ncols: int | None = None
+) -> Path:
+    """Several maps side by side: ``[(title, params, {label: paths}), …]``, ``ncols`` to a row (default: one row)."""
     path = Path(path)
     h, w = np.asarray(panels[0][1].grid).shape
-    fig, axes = plt.subplots(1, len(panels), figsize=(len(panels) * (0.45 * w + 0.6), 0.45 * h + 0.8), squeeze=False)
-    for ax, (title, params, trajs) in zip(axes[0], panels):
+    ncols = min(ncols or len(panels), len(panels))
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(ncols * (0.45 * w + 0.6), nrows * (0.45 * h + 0.8)), squeeze=False)
+    for ax in axes.ravel()[len(panels) :]:
+        ax.axis("off")
+    for ax, (title, params, trajs) in zip(axes.ravel(), panels):
         draw_world(ax, params)
         draw_trajectories(ax, trajs, colours)
         ax.set_title(title, fontsize=9)

@@ -30,6 +30,9 @@ A world file::
     true_prefers = "ice"          # the optimal route spends more steps on ice than on sand
     belief_prefers = "sand"       # the route the person expects: more on sand
     wider_berth = 0.5             # the expected route keeps ≥ 0.5 cell farther from pits
+    eps_route = "sand"            # the route EPS should take (ch. 4): ice, sand or detour
+                                  # (a berth around the pit wider than the optimal route's);
+                                  # judged by `mindgap reproduce eps`, not the planning check
 
 Wherever a world is named (``--world NAME``), a path to such a file works too.
 """
@@ -46,7 +49,8 @@ from .world import TerrainWorld
 
 NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4")
 _KEYS = {"name", "description", "horizon", "start_jitter", "layout", "rewards", "dynamics", "beliefs", "expect"}
-EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth"}
+EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth", "eps_route"}
+EPS_ROUTES = ("ice", "sand", "detour")
 
 
 def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
@@ -83,10 +87,16 @@ def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
     expect = dict(spec.get("expect", {}))
     bad = set(expect) - EXPECT_KEYS
     if bad:
-        raise ValueError(f"{where}[expect]: unknown key(s) {', '.join(sorted(bad))}; known: {', '.join(sorted(EXPECT_KEYS))}")
+        raise ValueError(
+            f"{where}[expect]: unknown key(s) {', '.join(sorted(bad))}; known: {', '.join(sorted(EXPECT_KEYS))}"
+        )
     for key in ("true_prefers", "belief_prefers"):
         if key in expect and expect[key] not in ("ice", "sand"):
             raise ValueError(f"{where}[expect] {key} must be 'ice' or 'sand', got {expect[key]!r}")
+    if "eps_route" in expect and expect["eps_route"] not in EPS_ROUTES:
+        raise ValueError(
+            f"{where}[expect] eps_route must be one of {', '.join(EPS_ROUTES)}, got {expect['eps_route']!r}"
+        )
     name = spec.get("name") or (Path(source).stem if source else "world")
     return TerrainWorld(name, layout, params, beliefs, spec.get("description", "").strip(), source, expect)
 

@@ -1,11 +1,13 @@
-"""The PrefBias experiments on the command line: ``mindgap reproduce nav|priors|sampling``.
+"""The terrain-world experiments on the command line: ``mindgap reproduce nav|priors|sampling|eps|lambda``.
 
-mindgap reproduce nav [--fast] [--seeds N] [--out DIR] [--fresh] [--quiet] [--assemble]
+mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W] [--out DIR] [--fresh] [--quiet] [--assemble]
 
-``--fast`` is the quick preset (1 seed, 1500 steps, 30 queries: a dry run and the tests'
-preset, not results); without it the full one (5 seeds, 30 000 steps, 80 queries a round).
-The run folder defaults to ``runs/NAME`` (``runs/NAME-fast``); rerunning resumes: finished
-jobs are read back, an interrupted one continues from its checkpoint.
+``--fast`` is the quick preset (1 seed, 1500 steps, tiny networks: a dry run and the tests'
+preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 30 000
+steps, 80 queries a round; the EPS ones: 5 seeds, 60 000 steps, 800 queries). ``--worlds``
+runs a subset of the experiment's worlds (or world files). The run folder defaults to
+``runs/NAME`` (``runs/NAME-fast``); rerunning resumes: finished jobs are read back, an
+interrupted one continues from its checkpoint.
 """
 
 from __future__ import annotations
@@ -13,7 +15,14 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-NAMES = ("nav", "priors", "sampling")
+MODULES = {
+    "nav": "prefbias_nav",
+    "priors": "prefbias_priors",
+    "sampling": "prefbias_sampling",
+    "eps": "eps_table",
+    "lambda": "eps_lambda",
+}
+NAMES = tuple(MODULES)
 
 
 def reproduce(args) -> int:
@@ -21,17 +30,22 @@ def reproduce(args) -> int:
     import importlib
 
     if args.name not in NAMES:
-        raise ValueError(f"unknown PrefBias experiment {args.name!r}: choose from {', '.join(NAMES)}")
+        raise ValueError(f"unknown terrain experiment {args.name!r}: choose from {', '.join(NAMES)}")
     if getattr(args, "participants", None) is not None:
         raise ValueError("--participants belongs to the coffee study")
     if getattr(args, "shard", None):
         raise ValueError(f"--shard is not supported by {args.name}: its seeds already run together in one program")
-    module = importlib.import_module(f".prefbias_{args.name}", __package__)
+    module = importlib.import_module(f".{MODULES[args.name]}", __package__)
     cfg = module.preset("fast" if args.fast else "full")
     if args.seeds is not None:
         if args.seeds < 1:
             raise ValueError("--seeds must be at least 1")
         cfg = replace(cfg, seeds=args.seeds)
+    if getattr(args, "worlds", None):
+        worlds = tuple(w.strip() for w in args.worlds.split(",") if w.strip())
+        if not worlds:
+            raise ValueError("--worlds needs at least one world")
+        cfg = replace(cfg, worlds=worlds)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     summary = module.run(
         cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False)
