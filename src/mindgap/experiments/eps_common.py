@@ -133,6 +133,11 @@ def compute(learn: EPSLearners):
     return run
 
 
+def run_experiment(cfg, out, jobs: list[pc.Job], write_outputs, **kw) -> dict:
+    """:func:`~.prefbias_common.run_experiment` with these experiments' jobs (``cfg.learners``'s)."""
+    return pc.run_experiment(cfg, out, jobs, write_outputs, compute=compute(cfg.learners), references=("person",), **kw)
+
+
 def train(world, job: pc.Job, seeds: int, out, person, *, fresh: bool, progress: bool) -> dict:
     """Train one learner's seeds; its results as :func:`learned_record` reads them.
 

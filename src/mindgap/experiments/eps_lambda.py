@@ -66,16 +66,8 @@ def jobs(cfg: LambdaConfig) -> list[pc.Job]:
 
 def run(cfg: LambdaConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
-    return pc.run_experiment(
-        cfg,
-        out,
-        jobs(cfg),
-        write_outputs,
-        fresh=fresh,
-        progress=progress,
-        assemble_only=assemble_only,
-        compute=ec.compute(cfg.learners),
-        references=("person",),
+    return ec.run_experiment(
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
     )
 
 
