@@ -15,6 +15,17 @@ SAC ("the oracle") skips the feedback and optimises the world's own reward. DRLH
 reset, with disagreement sampling; its policy optimiser is SAC here (the original used
 A2C/TRPO) so that all methods differ only in how they learn the reward.
 
+``absorbing`` (PEBBLE and DRLHP) gives the learned reward absorbing states (Kostrikov
+et al. 2019, "Discriminator-Actor-Critic"): segments keep the steps after a goal or pit
+as absorbing steps, each ensemble member learns their reward ``r_abs``, and the buffer's
+terminal transitions carry the absorbing state's value ``γ r_abs / (1 − γ)``. Without it
+a learned reward suffers termination bias: segments that reach the goal are cut short,
+their learned return is a sum of fewer bounded rewards, the critic values the end of an
+episode at 0, and the agent learns to hover next to the goal rather than enter it.
+``absorbing_state`` picks DAC's single absorbing state (``single``) or one per terminal
+state (``terminal``, the default: goals and pits must not share one; see
+:mod:`~mindgap.models.reward_ensemble`).
+
 Runs checkpoint after every chunk to ``OUT/checkpoint.npz`` and resume from it.
 """
 
@@ -33,14 +44,17 @@ import numpy as np
 from .. import rng
 from .._io import atomic_write
 from ..checkpoint import load_pytree, save_pytree
-from ..feedback.queries import SAMPLERS, select_queries
+from ..feedback.queries import SAMPLERS, query_scores, select_queries
 from ..feedback.replay import relabel
-from ..feedback.segments import Segments
+from ..feedback.segments import Segments, sample_segments, take
 from ..models.reward_ensemble import (
+    ABSORBING_STATES,
     PrefData,
     RewardConfig,
     RewardState,
+    absorbing_reward,
     ensemble_reward,
+    preference_probs,
     prefs_add,
     prefs_init,
     reward_init,
@@ -52,6 +66,8 @@ from .sac import SACConfig, sac_init
 from .sac_loop import LoopState, evaluate, loop_init, run_chunk
 
 METHODS = ("sac", "pebble", "drlhp")
+ABSORBING_DEFAULT = {"sac": False, "pebble": False, "drlhp": False}
+"""Whether each method's preset (:func:`method_config`) gives the learned reward an absorbing state."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -134,6 +150,10 @@ class PbRLConfig(Schedule):
     """uniform, disagreement or entropy."""
     candidates: int = 10
     """Pairs drawn per query kept (score-based samplers)."""
+    absorbing: bool = False
+    """Absorbing-state treatment of terminals for the learned reward (Kostrikov et al. 2019; not for sac)."""
+    absorbing_state: str = "terminal"
+    """With ``absorbing``: ``terminal`` (one absorbing state per terminal state) or ``single`` (DAC's one)."""
 
     def check(self) -> None:
         if self.method not in METHODS:
@@ -143,6 +163,27 @@ class PbRLConfig(Schedule):
         self.check_schedule()
         if self.method != "sac" and (self.queries < 1 or self.per_round < 1):
             raise ValueError("queries and per_round must be at least 1")
+        if self.method == "sac" and self.absorbing:
+            raise ValueError("absorbing applies to a learned reward (pebble, drlhp), not to sac")
+        if self.absorbing_state not in ABSORBING_STATES:
+            raise ValueError(
+                f"absorbing_state must be one of {', '.join(ABSORBING_STATES)}, got {self.absorbing_state!r}"
+            )
+
+    def as_dict(self) -> dict:
+        """The run record's config; the absorbing fields only when on, so run folders from before them still resume."""
+        d = super().as_dict()
+        if not self.absorbing:
+            del d["absorbing"], d["absorbing_state"]
+        return d
+
+    def absorbing_heads(self) -> str | None:
+        """The ``absorbing`` argument of :func:`~mindgap.models.reward_ensemble.reward_init`."""
+        return self.absorbing_state if self.absorbing else None
+
+    def absorbing_fn(self):
+        """The ``absorbing_fn`` of relabel and run_chunk: r_abs of the ensemble mean, or None."""
+        return absorbing_reward if self.absorbing else None
 
 
 def method_config(method: str, **overrides) -> PbRLConfig:
@@ -154,7 +195,7 @@ def method_config(method: str, **overrides) -> PbRLConfig:
     }
     if method not in base:
         raise ValueError(f"unknown method {method!r}: choose from {', '.join(METHODS)}")
-    cfg = PbRLConfig(**{**base[method], **overrides})
+    cfg = PbRLConfig(**{**base[method], "absorbing": ABSORBING_DEFAULT[method], **overrides})
     cfg.check()
     return cfg
 
@@ -174,8 +215,8 @@ def _init(keys, world_params, cfg: PbRLConfig) -> Carry:
         k_loop, k_rew, k_run = jax.random.split(k, 3)
         return Carry(
             loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
-            reward_init(k_rew, 2, 2, cfg.reward),
-            prefs_init(max(cfg.queries, 1), cfg.segment, 2, 2),
+            reward_init(k_rew, 2, 2, cfg.reward, absorbing=cfg.absorbing_heads()),
+            prefs_init(max(cfg.queries, 1), cfg.segment, 2, 2, absorbing=cfg.absorbing),
             k_run,
             jnp.zeros((), jnp.int32),
         )
@@ -186,10 +227,25 @@ def _init(keys, world_params, cfg: PbRLConfig) -> Carry:
 def _select_one(c: Carry, cfg: PbRLConfig):
     """First half of one seed's feedback round: the queries to show (and the keys for the rest)."""
     key, k_q, k_t, k_r = jax.random.split(c.key, 4)
-    seg_a, seg_b = select_queries(
-        k_q, c.loop.replay, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
-    )
+    if cfg.absorbing:
+        seg_a, seg_b = _select_absorbing(k_q, c.loop.replay, c.reward.params, cfg)
+    else:
+        seg_a, seg_b = select_queries(
+            k_q, c.loop.replay, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
+        )
     return c._replace(key=key), seg_a, seg_b, k_t, k_r
+
+
+def _select_absorbing(key, buf, reward_params, cfg: PbRLConfig):
+    """:func:`~mindgap.feedback.queries.select_queries` with absorbing segments (the same pairs for the same key)."""
+    ka, kb = jax.random.split(key)
+    m = cfg.per_round * (1 if cfg.sampler == "uniform" else cfg.candidates)
+    seg_a = sample_segments(buf, ka, m, cfg.segment, absorbing=True)
+    seg_b = sample_segments(buf, kb, m, cfg.segment, absorbing=True)
+    if cfg.sampler == "uniform":
+        return seg_a, seg_b
+    top = jax.lax.top_k(query_scores(preference_probs(reward_params, seg_a, seg_b), cfg.sampler), cfg.per_round)[1]
+    return take(seg_a, top), take(seg_b, top)
 
 
 def _learn_one(c: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
@@ -198,7 +254,7 @@ def _learn_one(c: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
     answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
     prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
     rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
-    replay = relabel(c.loop.replay, ensemble_reward, rew.params)
+    replay = relabel(c.loop.replay, ensemble_reward, rew.params, absorbing_fn=cfg.absorbing_fn(), gamma=cfg.sac.gamma)
     shown = jnp.minimum(cfg.per_round, left)
     c = c._replace(loop=c.loop._replace(replay=replay), reward=rew, prefs=prefs, queries=c.queries + shown)
     return c, (loss, acc)
@@ -239,7 +295,7 @@ def host_answers(teacher: HostTeacher, seg_a: Segments, seg_b: Segments, queries
     ask = int(min(per_round, budget - int(queries.min())))
 
     def flat(seg):
-        return Segments(*(np.asarray(x)[:, :ask].reshape(seeds * ask, *x.shape[2:]) for x in seg))
+        return type(seg)(*(np.asarray(x)[:, :ask].reshape(seeds * ask, *x.shape[2:]) for x in seg))
 
     got, ok = teacher(flat(seg_a), flat(seg_b))
     labels = np.zeros((seeds, per_round), np.float32)
@@ -276,6 +332,7 @@ def _chunk(carry: Carry, world_params, cfg: PbRLConfig, phase: str) -> Carry:
             phase=phase,
             reward_fn=ensemble_reward if learned else None,
             knn=cfg.knn,
+            absorbing_fn=cfg.absorbing_fn() if learned else None,
         )
     )(carry.loop, carry.reward.params)
     return carry._replace(loop=loop)

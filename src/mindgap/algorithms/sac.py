@@ -6,7 +6,9 @@ automatically tuned entropy coefficient α (target entropy −dim(A)). One updat
 * critic: ``y = c·r + γ(1 − terminal)(min_i Q̄_i(s', a') − α log π(a'|s'))``, ``a' ~ π(·|s')``;
   ``c`` the reward scale (1 by default); with n-step targets ``r`` is the discounted sum of
   up to n rewards of one episode, ``s'`` the state after the last of them and γ becomes γ^m;
-  loss ``Σ_i mean (Q_i(s, a) − y)²``;
+  loss ``Σ_i mean (Q_i(s, a) − y)²``; a terminal transition does not bootstrap, and the value
+  of a learned reward's absorbing state (Kostrikov et al. 2019) is already in its stored
+  ``r`` (:func:`~mindgap.feedback.replay.terminal_bonus`), so the update needs nothing for it;
 * actor: ``mean(α log π(ã|s) − min_i Q_i(s, ã))``, ``ã ~ π(·|s)`` reparameterised;
 * α: ``mean(−log α · (log π(ã|s) + target_entropy))``;
 * targets: ``Q̄ ← (1 − τ) Q̄ + τ Q``.

@@ -6,6 +6,12 @@ with the reward the agent optimises (the world's, or a learned model's), restart
 episodes, and performs ``utd`` SAC updates (none in the ``"random"`` phase; with a
 k-nearest-neighbour state-entropy reward in the ``"explore"`` phase of PEBBLE). The
 phase is static, so vmapping a chunk over seeds never executes branches it does not need.
+
+A learned reward with an absorbing state (Kostrikov et al. 2019; PEBBLE/DRLHP with
+``absorbing``) passes ``absorbing_fn``: terminal transitions are then stored with the
+bonus ``γ r_abs / (1 − γ)`` (:func:`~mindgap.feedback.replay.terminal_bonus`), the value of
+the state the episode ends in, so arriving at the goal is not worth less than hovering
+next to it. Other reward functions keep their own signature and need nothing new.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from ..envs.terrain import observe, reset, step
-from ..feedback.replay import Replay, replay_add, replay_init, replay_sample
+from ..feedback.replay import Replay, replay_add, replay_init, replay_sample, terminal_bonus
 from .sac import Batch, SACConfig, SACState, greedy_action, sac_init, sac_update, sample_action
 
 PHASES = ("random", "explore", "train")
@@ -72,7 +78,7 @@ def kth_smallest(d: jax.Array, k: int) -> jax.Array:
     return jax.lax.fori_loop(0, k, body, (d, jnp.zeros(d.shape[0], d.dtype)))[1]
 
 
-@partial(jax.jit, static_argnames=("n_steps", "cfg", "phase", "reward_fn", "knn"))
+@partial(jax.jit, static_argnames=("n_steps", "cfg", "phase", "reward_fn", "knn", "absorbing_fn"))
 def run_chunk(
     ls: LoopState,
     world_params,
@@ -83,6 +89,7 @@ def run_chunk(
     phase: str,
     reward_fn=None,
     knn: int = 5,
+    absorbing_fn=None,
 ) -> LoopState:
     """``n_steps`` environment steps (and their updates) of one seed; vmap for many.
 
@@ -90,6 +97,9 @@ def run_chunk(
         reward_params: parameters of ``reward_fn`` (ignored without one).
         reward_fn: ``reward_fn(reward_params, obs [B, d], act [B, a], next_obs [B, d]) → [B]``
             stored as the reward to optimise; None stores the world's own reward.
+        absorbing_fn: ``absorbing_fn(reward_params, next_obs [B, d]) → r_abs [B]`` of a learned
+            reward with absorbing states; terminal transitions then get ``γ r_abs / (1 − γ)``
+            on top (``cfg.gamma``). Only with a ``reward_fn``.
     """
     if phase not in PHASES:
         raise ValueError(f"phase must be one of {PHASES}, got {phase!r}")
@@ -107,6 +117,9 @@ def run_chunk(
             r = out.reward
         else:
             r = reward_fn(reward_params, obs[None], act[None], next_obs[None])[0]
+            if absorbing_fn is not None:
+                r_abs = absorbing_fn(reward_params, next_obs[None])[0]
+                r = r + jnp.where(out.terminated, terminal_bonus(r_abs, cfg.gamma), 0.0)
         replay = replay_add(ls.replay, obs, act, next_obs, out.reward, r, out.terminated, ls.env.t)
         env = jax.tree.map(lambda a, b: jnp.where(out.state.done, a, b), reset(k_reset, world_params), out.state)
         sac = ls.sac

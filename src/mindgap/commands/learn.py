@@ -11,7 +11,7 @@ import io
 import json
 from pathlib import Path
 
-from ..algorithms.pbrl import METHODS
+from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS
 from ..algorithms.sac import SACConfig
 
 
@@ -45,6 +45,20 @@ def add_parsers(sub) -> None:
             p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
             p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
             p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
+            p.add_argument(
+                "--absorbing",
+                action=argparse.BooleanOptionalAction,
+                default=None,
+                help="absorbing-state treatment of goals and pits for the learned reward (Kostrikov et al. 2019): "
+                "segments keep the steps after a terminal, the reward learns their value "
+                f"(default: {'on' if ABSORBING_DEFAULT[method] else 'off'})",
+            )
+            p.add_argument(
+                "--absorbing-state",
+                choices=("terminal", "single"),
+                help="with --absorbing: one absorbing state per terminal state (default: terminal) "
+                "or the single one of Kostrikov et al. (single)",
+            )
         add_run_flags(p)
 
 
@@ -121,6 +135,10 @@ def run(args: argparse.Namespace) -> int:
             sampler=args.sampler,
             teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
         )
+        if args.absorbing is not None:
+            over["absorbing"] = args.absorbing
+        if args.absorbing_state is not None:
+            over["absorbing_state"] = args.absorbing_state
         teacher = args.teacher
     host = None
     if teacher.startswith("study:"):

@@ -5,6 +5,14 @@ environment's own reward, the reward the agent currently optimises (``reward``:
 the environment's for an oracle, a learned model's otherwise — :func:`relabel` rewrites
 it), whether it ended the episode in a terminal state, and its step index within the
 episode (segments for preference queries must not cross episodes).
+
+Terminal transitions (goal, pit) and horizon truncations differ: ``terminal`` is set only
+for the former, whose targets do not bootstrap. A learned reward with an absorbing state
+(Kostrikov et al. 2019; :mod:`~mindgap.feedback.segments`) values the state after a
+terminal transition at ``r_abs / (1 − γ)``, not 0; :func:`relabel` and the training loop
+store that value in the reward of terminal transitions (:func:`terminal_bonus`), so the
+critic's target ``r + γ (1 − terminal) V(s')`` becomes exactly ``r + γ r_abs / (1 − γ)``
+there, n-step sums included, without a change to SAC.
 """
 
 from __future__ import annotations
@@ -101,11 +109,29 @@ def replay_sample(buf: Replay, key: jax.Array, batch_size: int, n_step: int = 1,
     )
 
 
-def relabel(buf: Replay, reward_fn, reward_params, chunk: int = 4096) -> Replay:
+def terminal_bonus(r_abs: jax.Array, gamma: float) -> jax.Array:
+    """What a terminal transition's reward gains under an absorbing-state reward ``r_abs``: ``γ r_abs / (1 − γ)``.
+
+    The absorbing state earns ``r_abs`` at every step for ever, so its value is
+    ``r_abs / (1 − γ)``, discounted once for the step into it (Kostrikov et al. 2019).
+    """
+    return gamma * r_abs / (1.0 - gamma)
+
+
+def relabel(
+    buf: Replay, reward_fn, reward_params, chunk: int = 4096, *, absorbing_fn=None, gamma: float | None = None
+) -> Replay:
     """Recompute the ``reward`` column with ``reward_fn(reward_params, obs, act, next_obs)``.
 
     Only the reward column changes; everything else, the environment's reward included,
     stays as it was. Work goes in chunks so that large buffers do not need one huge batch.
+
+    Args:
+        absorbing_fn: ``absorbing_fn(reward_params, next_obs [B, d]) → r_abs [B]``, the learned
+            reward of the absorbing state a terminal transition enters; terminal transitions
+            then also get :func:`terminal_bonus` ``(r_abs, gamma)``. None (the default): no
+            absorbing state.
+        gamma: the agent's discount; required with ``absorbing_fn``.
     """
     n = buf.capacity
     pad = (-n) % chunk
@@ -113,7 +139,16 @@ def relabel(buf: Replay, reward_fn, reward_params, chunk: int = 4096) -> Replay:
     def split(x):
         return jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1)).reshape(-1, chunk, *x.shape[1:])
 
-    r = jax.lax.map(lambda xs: reward_fn(reward_params, *xs), (split(buf.obs), split(buf.act), split(buf.next_obs)))
+    if absorbing_fn is not None and gamma is None:
+        raise ValueError("relabel: an absorbing_fn needs the agent's gamma")
+
+    def one(xs):
+        r = reward_fn(reward_params, *xs[:3])
+        if absorbing_fn is None:
+            return r
+        return r + jnp.where(xs[3], terminal_bonus(absorbing_fn(reward_params, xs[2]), gamma), 0.0)
+
+    r = jax.lax.map(one, (split(buf.obs), split(buf.act), split(buf.next_obs), split(buf.terminal)))
     r = r.reshape(-1)[:n]
     filled = jnp.arange(n) < buf.size
     return buf._replace(reward=jnp.where(filled, r, buf.reward))

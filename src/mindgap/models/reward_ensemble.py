@@ -4,6 +4,30 @@ Each member maps (s, a) to a reward in (−1, 1) (tanh output, as in PEBBLE); a 
 return is the masked sum over its steps, and the members are trained with the
 Bradley–Terry cross-entropy ``−[y log σ(R̂₁ − R̂₂) + (1 − y) log σ(R̂₂ − R̂₁)]`` (labels
 y ∈ {0, ½, 1}), each on its own minibatches. The agent optimises the members' mean.
+
+With absorbing states (``reward_init(..., absorbing=...)``; Kostrikov et al. 2019,
+"Discriminator-Actor-Critic") each member also learns a reward ``r_abs`` (tanh-squashed)
+for every step after a terminal transition, and a segment's return is
+``Σ mask·r(s, a) + Σ absorbed·r_abs`` (:class:`~mindgap.feedback.segments.AbsorbingSegments`).
+Why: when reaching the goal ends the episode, a segment that gets there is otherwise
+shorter than one that hovers nearby, and with rewards bounded in (−1, 1) near the goal
+the hovering segment can only score higher — the learned reward then teaches the agent
+never to arrive (termination bias). With absorbing steps every segment has the same
+length and the model learns what being done is worth; the agent's critic values the
+absorbing state at ``r_abs / (1 − γ)`` (:func:`~mindgap.feedback.replay.terminal_bonus`).
+
+DAC has one absorbing state (``single``: r_abs a learned constant). A world with both a
+goal and pits needs more: with one shared state the pits, far more often reached by early
+experience, pull r_abs below the step rewards and the goal becomes as unattractive as
+without the treatment (measured on d1). So by default (``terminal``) each terminal state
+has its own absorbing state, ``r_abs(s_T)`` a learned function of the state ``s_T`` the
+episode ended in — the goal's absorbing state can then be good and a pit's bad. That
+function is local, a linear layer on compactly supported radial basis features of
+``s_T`` without a bias (:func:`absorbing_features`), so that it stays exactly 0 at
+terminal states no segment has reached yet: an MLP head, tried first, carried the pits'
+−1 over to a goal that some seeds had not yet found, and those seeds then avoided it for
+good (d1: 2 of 5 seeds solved).
+Without absorbing states the parameters are the plain MLP stack, as before.
 """
 
 from __future__ import annotations
@@ -15,7 +39,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from ..feedback.segments import Segments
+from ..feedback.segments import Segments, absorbed_steps, with_absorbing
 from .mlp import Params, init_stack, mlp
 
 
@@ -36,8 +60,55 @@ class RewardConfig:
 
 
 class RewardState(NamedTuple):
-    params: Params  # members stacked along axis 0
+    params: Params  # members stacked along axis 0 (AbsorbingParams with an absorbing state)
     opt: optax.OptState
+
+
+ABSORBING_STATES = ("terminal", "single")
+"""How many absorbing states a learned reward has: one per terminal state (``terminal``) or one (``single``, DAC's)."""
+
+
+class AbsorbingParams(NamedTuple):
+    """Reward parameters with absorbing states: ``net`` the members' MLP stack, ``absorb`` their absorbing heads.
+
+    ``absorb [E, M]`` are the weights of ``r_abs(s_T) = tanh(φ(s_T) · w)`` on the features
+    φ of :func:`absorbing_features`: ``M = 1`` (``single``) is a constant feature, one learned
+    constant per member; otherwise radial basis features of the terminal state.
+    """
+
+    net: Params
+    absorb: jax.Array
+
+
+RBF_PER_AXIS = 16
+"""Radial basis centres per observation axis of the ``terminal`` absorbing head (on [−1, 1])."""
+RBF_SUPPORT = 2.0
+"""Radius of each radial basis feature, in widths (its value there is exp(−2) of its peak)."""
+RBF_GAIN = 20.0
+"""Height of each radial basis feature: a step of Adam then moves r_abs about as far as it
+moves the output of a member's MLP (about lr × 60), so the head keeps pace with the members."""
+
+
+def absorbing_features(terminal_obs: jax.Array, m: int) -> jax.Array:
+    """φ(s_T) ``[..., m]``: the constant 1 for ``m = 1``, else Gaussian bumps on a grid over [−1, 1]^d.
+
+    The grid has :data:`RBF_PER_AXIS` centres per axis (``m = RBF_PER_AXIS^d``), the bumps'
+    width is the grid's spacing and their height :data:`RBF_GAIN`, and each is cut to 0
+    beyond :data:`RBF_SUPPORT` widths. The cut matters: Adam scales each weight's step by its
+    own gradient history, so a Gaussian's far tail (a gradient of 1e-6) moves a weight as
+    fast as its centre would; with a compact support a weight whose bump no terminal state
+    reaches gets an exactly-zero gradient and never moves (measured on d1: uncut, the pits'
+    −1 spread over the whole map, the goal included).
+    """
+    if m == 1:
+        return jnp.ones((*terminal_obs.shape[:-1], 1))
+    d = terminal_obs.shape[-1]
+    axis = jnp.linspace(-1.0, 1.0, RBF_PER_AXIS)
+    centres = jnp.stack(jnp.meshgrid(*([axis] * d), indexing="ij"), -1).reshape(-1, d)  # [m, d]
+    width = 2.0 / (RBF_PER_AXIS - 1)
+    sq = jnp.sum((terminal_obs[..., None, :] - centres) ** 2, -1)
+    bump = jnp.exp(-0.5 * sq / width**2)
+    return RBF_GAIN * jnp.where(sq < (RBF_SUPPORT * width) ** 2, bump, 0.0)
 
 
 class PrefData(NamedTuple):
@@ -49,15 +120,53 @@ class PrefData(NamedTuple):
     count: jax.Array
 
 
-def reward_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: RewardConfig) -> RewardState:
+def reward_init(
+    key: jax.Array, obs_dim: int, act_dim: int, cfg: RewardConfig, absorbing: str | None = None
+) -> RewardState:
+    """Fresh members; with ``absorbing`` (one of :data:`ABSORBING_STATES`) also their absorbing heads.
+
+    A ``terminal`` head weighs radial basis features of the terminal state, a ``single`` one
+    a constant. Either starts at r_abs = 0 everywhere (zero weights), and the members'
+    networks are the same for the same key with or without one.
+    """
     params = init_stack(key, cfg.members, (obs_dim + act_dim, *cfg.hidden, 1))
+    if absorbing is not None:
+        if absorbing not in ABSORBING_STATES:
+            raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)}, got {absorbing!r}")
+        m = RBF_PER_AXIS**obs_dim if absorbing == "terminal" else 1
+        params = AbsorbingParams(params, jnp.zeros((cfg.members, m)))
     return RewardState(params, optax.adam(cfg.lr).init(params))
+
+
+def _net(params) -> Params:
+    return params.net if isinstance(params, AbsorbingParams) else params
 
 
 def member_rewards(params: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
     """Every member's reward. obs [..., d], act [..., a] → [E, ...]."""
     x = jnp.concatenate([obs, act], axis=-1)
-    return jax.vmap(lambda p: jnp.tanh(mlp(p, x)[..., 0]))(params)
+    return jax.vmap(lambda p: jnp.tanh(mlp(p, x)[..., 0]))(_net(params))
+
+
+def member_absorbing_rewards(params, terminal_obs: jax.Array) -> jax.Array:
+    """Every member's reward in the absorbing state entered at ``terminal_obs [..., d]``: [E, ...].
+
+    Zeros for parameters without absorbing heads.
+    """
+    if not isinstance(params, AbsorbingParams):
+        return jnp.zeros((jax.tree.leaves(params)[0].shape[0], *terminal_obs.shape[:-1]))
+    phi = absorbing_features(terminal_obs, params.absorb.shape[-1])  # [..., M]
+    return jnp.tanh(jnp.moveaxis(phi @ params.absorb.T, -1, 0))
+
+
+def absorbing_reward(params, terminal_obs: jax.Array) -> jax.Array:
+    """The absorbing-state reward of the members' mean (what the agent optimises): [B, d] → [B].
+
+    The ``absorbing_fn`` of :func:`~mindgap.feedback.replay.relabel` and
+    :func:`~mindgap.algorithms.sac_loop.run_chunk`, evaluated at the next observation of
+    terminal transitions.
+    """
+    return member_absorbing_rewards(params, terminal_obs).mean(0)
 
 
 def ensemble_reward(params: Params, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
@@ -67,9 +176,14 @@ def ensemble_reward(params: Params, obs: jax.Array, act: jax.Array, next_obs: ja
 
 
 def segment_returns(params: Params, seg: Segments) -> jax.Array:
-    """Each member's return of each segment: [E, K]."""
+    """Each member's return of each segment: [E, K] (absorbing steps count ``r_abs`` with :class:`AbsorbingParams`)."""
     r = member_rewards(params, seg.obs, seg.act)  # [E, K, L]
-    return jnp.sum(jnp.where(seg.mask, r, 0.0), axis=-1)
+    ret = jnp.sum(jnp.where(seg.mask, r, 0.0), axis=-1)
+    if isinstance(params, AbsorbingParams):  # Σ absorbed · r_abs(s_T), s_T where the last real step ended
+        last = jnp.maximum(seg.mask.sum(-1) - 1, 0)  # [K]
+        s_t = jnp.take_along_axis(seg.next_obs, last[:, None, None], axis=1)[:, 0]  # [K, d]
+        ret = ret + member_absorbing_rewards(params, s_t) * absorbed_steps(seg).sum(-1)
+    return ret
 
 
 def preference_probs(params: Params, seg_a: Segments, seg_b: Segments) -> jax.Array:
@@ -84,23 +198,33 @@ def bt_loss(params: Params, seg_a: Segments, seg_b: Segments, label: jax.Array, 
     return jnp.sum(jnp.sum(ce * weight, axis=-1) / jnp.maximum(weight.sum(-1), 1.0))
 
 
-def prefs_init(capacity: int, length: int, obs_dim: int, act_dim: int) -> PrefData:
+def prefs_init(capacity: int, length: int, obs_dim: int, act_dim: int, absorbing: bool = False) -> PrefData:
+    """An empty store; with ``absorbing`` it keeps the absorbing steps of the segments too."""
     seg = Segments(
         jnp.zeros((capacity, length, obs_dim)),
         jnp.zeros((capacity, length, act_dim)),
         jnp.zeros((capacity, length, obs_dim)),
         jnp.zeros((capacity, length), bool),
     )
+    seg = with_absorbing(seg, absorbing)
     return PrefData(seg, seg, jnp.zeros(capacity), jnp.zeros((), jnp.int32))
 
 
 def prefs_add(data: PrefData, seg_a: Segments, seg_b: Segments, label: jax.Array, answered: jax.Array) -> PrefData:
-    """Append the answered queries (skipped ones are dropped)."""
+    """Append the answered queries (skipped ones are dropped).
+
+    Segments are stored in the store's own form: absorbing steps are kept only by a store
+    made with ``absorbing=True`` (plain segments added to one have none).
+    """
+    absorbing = hasattr(data.seg_a, "absorbed")
+    seg_a, seg_b = with_absorbing(seg_a, absorbing), with_absorbing(seg_b, absorbing)
     cap = data.label.shape[0]
     slot = data.count + jnp.cumsum(answered) - 1
     slot = jnp.where(answered & (slot < cap), slot, cap)  # cap: out of range, dropped by the scatter
+
     def put(store, new):
         return jax.tree.map(lambda s, n: s.at[slot].set(n, mode="drop"), store, new)
+
     return PrefData(
         put(data.seg_a, seg_a),
         put(data.seg_b, seg_b),
@@ -120,6 +244,7 @@ def train_reward(state: RewardState, data: PrefData, key: jax.Array, cfg: Reward
 
     def one(st, k):
         idx = jax.random.randint(k, (cfg.members, cfg.batch_size), 0, n)  # per member
+
         def sel(tree):
             return jax.tree.map(lambda x: x[idx], tree)  # [E, B, ...]
 
