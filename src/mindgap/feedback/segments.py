@@ -8,7 +8,8 @@ With ``absorbing=True`` the steps after a *terminal* transition (goal or pit; no
 horizon, which only truncates the episode) are kept as steps in an absorbing state
 instead (Kostrikov et al. 2019, "Discriminator-Actor-Critic"): once an episode
 has terminated the agent stays, in the MDP's own terms, in a state where every step earns
-the same reward — truly 0, under a learned model a learned constant ``r_abs``. Dropping
+the same reward — truly 0, under a learned model a learned ``r_abs`` (one constant, or one
+per terminal state: :mod:`~mindgap.models.reward_ensemble`). Dropping
 those steps makes a segment that reaches the goal early *shorter* than one that idles
 before it, and a learned return, a sum of bounded per-step rewards, then favours idling
 (the termination bias of learned rewards that Kostrikov et al. describe). With absorbing
