@@ -67,7 +67,13 @@ from .sac_loop import LoopState, evaluate, loop_init, run_chunk
 
 METHODS = ("sac", "pebble", "drlhp")
 ABSORBING_DEFAULT = {"sac": False, "pebble": False, "drlhp": False}
-"""Whether each method's preset (:func:`method_config`) gives the learned reward an absorbing state."""
+"""Whether each method's preset (:func:`method_config`) gives the learned reward absorbing states.
+
+Off, by measurement (PEBBLE, true teacher, 800 queries, 5 seeds): on d1 (60 000 steps) it
+lifts the final return from −93.8 ± 2.5 to 56.8 ± 79.1 (4 of 5 seeds at the goal; SAC
+101.2), short of 90% of SAC; on nav1 (30 000 steps) it gave −9.5 ± 17.7 against −1.0 ± 0.4,
+one slow seed still unstable at the end.
+"""
 
 
 @dataclasses.dataclass(frozen=True)
