@@ -17,6 +17,35 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
     assert "--hidden must look like" in capsys.readouterr().err
     assert main(["drlhp", "--world", "d1", "--steps", "1500", "--out", str(tmp_path)]) == 2
     assert "multiple of chunk" in capsys.readouterr().err
+    assert main(["sac", "--world", "d1", "--noise-color", "-1", "--out", str(tmp_path)]) == 2
+    assert "noise_color must be non-negative" in capsys.readouterr().err
+    assert main(["sac", "--world", "d1", "--entropy-bonus", "-0.5", "--out", str(tmp_path)]) == 2
+    assert "entropy_bonus must be non-negative" in capsys.readouterr().err
+
+
+def test_exploration_flags_reach_the_sac_config():
+    from mindgap.algorithms.pbrl import ORACLE_EXPLORATION
+    from mindgap.cli import _parser
+    from mindgap.commands.learn import sac_config
+    from mindgap.experiments.prefbias_common import learners
+
+    def explore(cfg):
+        return {"noise_color": cfg.noise_color, "entropy_bonus": cfg.entropy_bonus}
+
+    parse = _parser().parse_args
+    plain = {"noise_color": 0.0, "entropy_bonus": 0.0}
+    # the oracle explores by default, the learners from preferences do not; flags override both
+    assert explore(sac_config(parse(["sac", "--world", "d1", "--out", "x"]))) == ORACLE_EXPLORATION != plain
+    assert explore(sac_config(parse(["pebble", "--world", "d1", "--out", "x"]))) == plain
+    flags = ["--noise-color", "2", "--entropy-bonus", "0.5"]
+    assert explore(sac_config(parse(["drlhp", "--world", "d1", "--out", "x", *flags]))) == {
+        "noise_color": 2.0,
+        "entropy_bonus": 0.5,
+    }
+    assert explore(sac_config(parse(["sac", "--world", "d1", "--out", "x", "--noise-color", "0"])))["noise_color"] == 0
+    # and so do the experiments' oracle jobs
+    fast = learners("fast")
+    assert explore(fast.sac.sac) == ORACLE_EXPLORATION and explore(fast.pebble.sac) == plain
 
 
 @pytest.mark.slow

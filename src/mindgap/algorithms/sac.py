@@ -63,8 +63,31 @@ class SACConfig:
     reward_scale: float = 1.0
     """Factor on the reward in the critic's target (Haarnoja et al. 2018a); the terrain worlds'
     ±100 terminal rewards make the critic's targets large and its greedy policy unstable."""
+    noise_color: float = 0.0
+    """Exponent β of the 1/f^β spectrum of the noise in the actions that collect data
+    (:mod:`~mindgap.algorithms.colored_noise`): 0 is SAC's white noise, 1 pink noise
+    (Eberhard et al. 2023), 2 red. The random phase then acts with ``tanh`` of the noise
+    instead of uniformly. Updates are unaffected."""
+    noise_length: int = 128
+    """Steps of one coloured-noise sequence: one is drawn at each episode start (and every
+    ``noise_length`` steps of a longer episode)."""
+    entropy_bonus: float = 0.0
+    """Weight β₀ of a state-entropy bonus added to the reward in training updates (JAX
+    worlds' loop only): PEBBLE's k-nearest-neighbour reward, kept on with a weight that
+    halves every ``entropy_bonus_halflife`` environment steps (as in RE3, Seo et al. 2021),
+    centred on its batch mean.
+    It draws the agent to states its buffer holds few of until the task's reward takes over;
+    0 switches it off."""
+    entropy_bonus_halflife: int = 10_000
+    """Environment steps over which the state-entropy bonus's weight halves."""
 
     def __post_init__(self):
+        if self.noise_color < 0:
+            raise ValueError(f"SAC noise_color must be non-negative, got {self.noise_color}")
+        if self.entropy_bonus < 0 or self.entropy_bonus_halflife < 1:
+            raise ValueError("SAC entropy_bonus must be non-negative and its half-life at least 1 step")
+        if self.noise_length < 2:
+            raise ValueError(f"SAC noise_length must be at least 2, got {self.noise_length}")
         for name in ("utd", "batch_size", "n_step"):
             if getattr(self, name) < 1:
                 raise ValueError(f"SAC {name} must be at least 1, got {getattr(self, name)}")
@@ -122,10 +145,15 @@ def actor_dist(actor: Params, obs: jax.Array):
     return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
 
-def sample_action(actor: Params, obs: jax.Array, key: jax.Array):
-    """A squashed-Gaussian action and its log density. obs [..., d] → (action [..., a], log π [...])."""
+def sample_action(actor: Params, obs: jax.Array, key: jax.Array, eps: jax.Array | None = None):
+    """A squashed-Gaussian action and its log density. obs [..., d] → (action [..., a], log π [...]).
+
+    ``eps`` (shaped like the action) replaces the standard normal draw, e.g. by one step of
+    a coloured-noise sequence; ``key`` is then unused.
+    """
     mean, log_std = actor_dist(actor, obs)
-    eps = jax.random.normal(key, mean.shape, mean.dtype)
+    if eps is None:
+        eps = jax.random.normal(key, mean.shape, mean.dtype)
     u = mean + jnp.exp(log_std) * eps
     log_gauss = jnp.sum(-0.5 * eps**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
     # log |d tanh(u)/du| = log(1 − tanh²u) = 2 (log 2 − u − softplus(−2u)), stable for large |u|

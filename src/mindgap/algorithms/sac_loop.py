@@ -1,11 +1,14 @@
 """SAC on a JAX world in one jitted program: ``lax.scan`` over environment steps and updates.
 
 A chunk of training is :func:`run_chunk`: per step it acts (uniformly at random in the
-``"random"`` phase, from the policy otherwise), steps the world, stores the transition
-with the reward the agent optimises (the world's, or a learned model's), restarts finished
-episodes, and performs ``utd`` SAC updates (none in the ``"random"`` phase; with a
-k-nearest-neighbour state-entropy reward in the ``"explore"`` phase of PEBBLE). The
-phase is static, so vmapping a chunk over seeds never executes branches it does not need.
+``"random"`` phase, from the policy otherwise; with ``SACConfig.noise_color`` > 0 both draw
+on one coloured-noise sequence per episode, :mod:`~mindgap.algorithms.colored_noise`),
+steps the world, stores the transition with the reward the agent optimises (the world's,
+or a learned model's), restarts finished episodes, and performs ``utd`` SAC updates (none
+in the ``"random"`` phase; with a k-nearest-neighbour state-entropy reward in the
+``"explore"`` phase of PEBBLE, and added with a decaying weight to the reward in
+``"train"`` when ``SACConfig.entropy_bonus`` > 0). The phase is static, so vmapping a
+chunk over seeds never executes branches it does not need.
 
 A learned reward with an absorbing state (Kostrikov et al. 2019; PEBBLE/DRLHP with
 ``absorbing``) passes ``absorbing_fn``: terminal transitions are then stored with the
@@ -24,9 +27,11 @@ import jax.numpy as jnp
 
 from ..envs.terrain import observe, reset, step
 from ..feedback.replay import Replay, replay_add, replay_init, replay_sample, terminal_bonus
+from .colored_noise import colored_noise
 from .sac import Batch, SACConfig, SACState, greedy_action, sac_init, sac_update, sample_action
 
 PHASES = ("random", "explore", "train")
+BONUS_POOL = 256  # buffer states the training-time state-entropy bonus measures distances to
 
 
 class LoopState(NamedTuple):
@@ -37,6 +42,7 @@ class LoopState(NamedTuple):
     env: object  # TerrainState
     key: jax.Array
     steps: jax.Array
+    noise: jax.Array  # [noise_length, a]: this episode's coloured noise ([0, a] with white noise)
 
 
 def loop_init(key: jax.Array, world_params, cfg: SACConfig, capacity: int) -> LoopState:
@@ -49,6 +55,7 @@ def loop_init(key: jax.Array, world_params, cfg: SACConfig, capacity: int) -> Lo
         env,
         k_run,
         jnp.zeros((), jnp.int32),
+        jnp.zeros((cfg.noise_length if cfg.noise_color > 0 else 0, act_dim), jnp.float32),
     )
 
 
@@ -61,6 +68,21 @@ def state_entropy_reward(batch: Batch, pool: jax.Array, k: int) -> jax.Array:
     d = jnp.linalg.norm(batch.next_obs[:, None, :] - pool[None, :, :], axis=-1)
     r = jnp.log1p(kth_smallest(d, k + 1))  # k+1: a state can meet itself in the pool
     return r / (jnp.std(r) + 1e-6)
+
+
+def bonus_weight(cfg: SACConfig, steps: jax.Array) -> jax.Array:
+    """Weight of the training-time state-entropy bonus after ``steps`` environment steps: β₀ 2^(−steps/half-life)."""
+    return cfg.entropy_bonus * 0.5 ** (steps / cfg.entropy_bonus_halflife)
+
+
+def novelty_bonus(batch: Batch, pool: jax.Array, k: int, weight) -> jax.Array:
+    """``weight`` × :func:`state_entropy_reward`, centred on its batch mean.
+
+    Centred because a bonus that is positive on average pays for staying alive, and so for
+    not ending the episode at the goal (the termination bias of Kostrikov et al. 2019).
+    """
+    novelty = state_entropy_reward(batch, pool, k)
+    return weight * (novelty - novelty.mean())
 
 
 def kth_smallest(d: jax.Array, k: int) -> jax.Array:
@@ -107,7 +129,17 @@ def run_chunk(
     def body(ls: LoopState, _):
         key, k_act, k_env, k_reset, k_upd = jax.random.split(ls.key, 5)
         obs = observe(ls.env, world_params)
-        if phase == "random":
+        noise = ls.noise
+        if cfg.noise_color > 0:  # a fresh sequence at each episode start (and every noise_length steps)
+            i = ls.env.t % cfg.noise_length
+            fresh = colored_noise(jax.random.fold_in(k_act, 1), cfg.noise_color, cfg.noise_length, noise.shape[1])
+            noise = jnp.where(i == 0, fresh, noise)
+            eps = noise[i]
+            if phase == "random":
+                act = jnp.tanh(eps)
+            else:
+                act = sample_action(ls.sac.params.actor, obs, k_act, eps)[0]
+        elif phase == "random":
             act = jax.random.uniform(k_act, (2,), minval=-1.0, maxval=1.0)
         else:
             act = sample_action(ls.sac.params.actor, obs, k_act)[0]
@@ -133,10 +165,14 @@ def run_chunk(
                     batch = batch._replace(reward=state_entropy_reward(batch, pool, knn))
                 else:
                     batch = replay_sample(replay, k_batch, cfg.batch_size, cfg.n_step, cfg.gamma)
+                    if cfg.entropy_bonus > 0:  # on the first step of an n-step target
+                        pool = replay_sample(replay, k_pool, BONUS_POOL).next_obs
+                        bonus = novelty_bonus(batch, pool, knn, bonus_weight(cfg, ls.steps))
+                        batch = batch._replace(reward=batch.reward + bonus)
                 return sac_update(sac, batch, k_sac, cfg)[0], None
 
             sac, _ = jax.lax.scan(update, sac, jax.random.split(k_upd, cfg.utd))
-        return LoopState(sac, replay, env, key, ls.steps + 1), None
+        return LoopState(sac, replay, env, key, ls.steps + 1, noise), None
 
     ls, _ = jax.lax.scan(body, ls, None, length=n_steps)
     return ls

@@ -11,7 +11,7 @@ import io
 import json
 from pathlib import Path
 
-from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS
+from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS, ORACLE_EXPLORATION
 from ..algorithms.sac import SACConfig
 
 
@@ -59,16 +59,20 @@ def add_parsers(sub) -> None:
                 help="with --absorbing: one absorbing state per terminal state (default: terminal) "
                 "or the single one of Kostrikov et al. (single)",
             )
-        add_run_flags(p)
+        add_run_flags(p, ORACLE_EXPLORATION if method == "sac" else None)
 
 
-def add_run_flags(p) -> None:
-    """Flags every learning command shares: steps, seeds, the SAC settings, the run folder."""
+def add_run_flags(p, exploration: dict | None = None) -> None:
+    """Flags every learning command shares: steps, seeds, the SAC settings, the run folder.
+
+    ``exploration``: defaults of ``--noise-color`` and ``--entropy-bonus`` other than
+    SACConfig's (the SAC oracle's :data:`~mindgap.algorithms.pbrl.ORACLE_EXPLORATION`).
+    """
     p.add_argument("--steps", type=int, default=40_000, help="environment steps per seed (default 40000)")
     p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
     p.add_argument("--seed", type=int, default=0, help="base seed")
     p.add_argument("--hidden", default="64,64", help="hidden widths of actor and critics (default 64,64)")
-    d = SACConfig()
+    d = SACConfig(**(exploration or {}))
     p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random steps before SAC updates")
     p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
     p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")
@@ -80,6 +84,20 @@ def add_run_flags(p) -> None:
         type=float,
         default=d.reward_scale,
         help=f"factor on rewards in the critic target (default {d.reward_scale})",
+    )
+    p.add_argument(
+        "--noise-color",
+        type=float,
+        default=d.noise_color,
+        help="exponent β of the exploration noise's 1/f^β spectrum: 0 white (plain SAC), 1 pink, 2 red "
+        f"(default {d.noise_color:g})",
+    )
+    p.add_argument(
+        "--entropy-bonus",
+        type=float,
+        default=d.entropy_bonus,
+        help="weight of a state-entropy bonus on the reward in training, halving every "
+        f"{d.entropy_bonus_halflife} steps (default {d.entropy_bonus:g}{': off' if not d.entropy_bonus else ''})",
     )
     p.add_argument("--out", type=Path, required=True, help="run folder (reruns resume from its checkpoint)")
     p.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
@@ -112,6 +130,8 @@ def sac_config(args: argparse.Namespace) -> SACConfig:
         batch_size=args.batch,
         reward_scale=args.reward_scale,
         n_step=args.n_step,
+        noise_color=args.noise_color,
+        entropy_bonus=args.entropy_bonus,
     )
 
 
