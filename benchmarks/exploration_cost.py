@@ -11,11 +11,12 @@ is excluded (one warm-up chunk each); the ratio to plain SAC is printed.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import jax
 
-from mindgap.algorithms.pbrl import ORACLE_EXPLORATION
+from mindgap.algorithms.pbrl import ORACLE_EXPLORATION, oracle_sac
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
 from mindgap.envs.terrain import load_world
@@ -45,8 +46,8 @@ def main() -> None:
     base = SACConfig(hidden=(args.hidden, args.hidden), learning_starts=0)
     variants = {
         "plain SAC": base,
-        "pink noise": SACConfig(**{**base.__dict__, "noise_color": ORACLE_EXPLORATION["noise_color"]}),
-        "pink noise + entropy bonus (oracle)": SACConfig(**{**base.__dict__, **ORACLE_EXPLORATION}),
+        "pink noise": dataclasses.replace(base, noise_color=ORACLE_EXPLORATION["noise_color"]),
+        "pink noise + entropy bonus (oracle)": oracle_sac(base),
     }
     print(
         f"{args.world}, {args.seeds} seeds vmapped, {args.hidden}x{args.hidden}, batch {base.batch_size}, 1 update/step"

@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from mindgap.algorithms import pbrl
-from mindgap.algorithms.pbrl import method_config, train
-from mindgap.algorithms.sac import SACConfig
+from mindgap.algorithms.pbrl import FAST_SCHEDULE, method_config, train
 from mindgap.envs.terrain import world_from_dict
 from mindgap.models.reward_ensemble import RewardConfig
 from mindgap.planning.terrain import rollouts
@@ -17,18 +16,7 @@ EASY = {
     "layout": "#########\n#S.....G#\n#.......#\n#########",
     "rewards": {"goal": 10.0, "step": -1.0, "progress": 1.0},
 }
-TINY = dict(
-    total_steps=1500,
-    chunk=250,
-    eval_every=500,
-    eval_episodes=4,
-    feedback_every=250,
-    queries=30,
-    per_round=10,
-    segment=5,
-    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
-    reward=RewardConfig(hidden=(8, 8), updates=10, batch_size=8),
-)
+TINY = {**FAST_SCHEDULE, "reward": RewardConfig(hidden=(8, 8), updates=10, batch_size=8)}
 
 
 @pytest.fixture(scope="module")

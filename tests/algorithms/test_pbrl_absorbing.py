@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mindgap.algorithms import pbrl
-from mindgap.algorithms.pbrl import PbRLConfig, method_config, train
+from mindgap.algorithms.pbrl import FAST_SCHEDULE, PbRLConfig, method_config, train
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
 from mindgap.envs.terrain import world_from_dict
@@ -117,24 +117,7 @@ def test_run_chunk_stores_the_bonus_on_terminal_transitions(key):
     )
 
 
-EASY = {
-    "name": "easy",
-    "horizon": 30,
-    "layout": "#########\n#S.....G#\n#.......#\n#########",
-    "rewards": {"goal": 10.0, "step": -1.0, "progress": 1.0},
-}
-TINY = dict(
-    total_steps=1500,
-    chunk=250,
-    eval_every=500,
-    eval_episodes=4,
-    feedback_every=250,
-    queries=30,
-    per_round=10,
-    segment=5,
-    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
-    reward=RewardConfig(hidden=(8, 8), updates=10, batch_size=8),
-)
+TINY = {**FAST_SCHEDULE, "reward": RewardConfig(hidden=(8, 8), updates=10, batch_size=8)}
 
 
 def test_pebble_with_an_absorbing_state_learns_r_abs_and_keeps_the_buffer_consistent():

@@ -9,8 +9,7 @@ import pytest
 from fastapi.testclient import TestClient
 from study_helpers import Participant, study_file
 
-from mindgap.algorithms.pbrl import method_config, train
-from mindgap.algorithms.sac import SACConfig
+from mindgap.algorithms.pbrl import FAST_SCHEDULE, method_config, train
 from mindgap.envs.terrain import load_world, world_from_dict
 from mindgap.feedback.segments import Segments
 from mindgap.models.reward_ensemble import RewardConfig
@@ -34,19 +33,13 @@ goal = 10.0
 step = -1.0
 progress = 1.0
 """
-TINY = dict(
-    total_steps=1500,
-    chunk=250,
-    eval_every=500,
-    eval_episodes=4,
-    feedback_every=250,
-    explore_steps=250,
-    queries=12,
-    per_round=6,
-    segment=5,
-    sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250),
-    reward=RewardConfig(hidden=(8, 8), updates=10, batch_size=8),
-)
+TINY = {
+    **FAST_SCHEDULE,
+    "explore_steps": 250,
+    "queries": 12,
+    "per_round": 6,
+    "reward": RewardConfig(hidden=(8, 8), updates=10, batch_size=8),
+}
 
 
 def _live(tmp_path, world="nav1"):
