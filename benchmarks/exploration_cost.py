@@ -1,8 +1,8 @@
-"""Benchmark: what the SAC oracle's exploration costs per environment step.
+"""Benchmark: what the learners' default exploration costs per environment step.
 
 Side by side in one process, the same jitted training chunk (``sac_loop.run_chunk``, one
 update per step, seeds vmapped) with plain SAC exploration, with pink action noise, and
-with pink noise plus the state-entropy bonus (``pbrl.ORACLE_EXPLORATION``). Compilation
+with pink noise plus the state-entropy bonus (``pbrl.EXPLORATION``, every learner's default). Compilation
 is excluded (one warm-up chunk each); the ratio to plain SAC is printed.
 
     python benchmarks/exploration_cost.py [--world d3] [--seeds 5] [--chunks 3] [--hidden 64]
@@ -16,7 +16,7 @@ import time
 
 import jax
 
-from mindgap.algorithms.pbrl import ORACLE_EXPLORATION, oracle_sac
+from mindgap.algorithms.pbrl import EXPLORATION
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
 from mindgap.envs.terrain import load_world
@@ -46,8 +46,8 @@ def main() -> None:
     base = SACConfig(hidden=(args.hidden, args.hidden), learning_starts=0)
     variants = {
         "plain SAC": base,
-        "pink noise": dataclasses.replace(base, noise_color=ORACLE_EXPLORATION["noise_color"]),
-        "pink noise + entropy bonus (oracle)": oracle_sac(base),
+        "pink noise": dataclasses.replace(base, noise_color=EXPLORATION["noise_color"]),
+        "pink noise + entropy bonus (default)": dataclasses.replace(base, **EXPLORATION),
     }
     print(
         f"{args.world}, {args.seeds} seeds vmapped, {args.hidden}x{args.hidden}, batch {base.batch_size}, 1 update/step"

@@ -24,28 +24,32 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
 
 
 def test_exploration_flags_reach_the_sac_config():
-    from mindgap.algorithms.pbrl import ORACLE_EXPLORATION
+    from mindgap.algorithms.pbrl import EXPLORATION
     from mindgap.cli import _parser
     from mindgap.commands.learn import sac_config
+    from mindgap.experiments import eps_common as ec
     from mindgap.experiments.prefbias_common import learners
 
-    def explore(cfg):
+    def explore(cfg):  # of a SACConfig or the parsed command line
         return {"noise_color": cfg.noise_color, "entropy_bonus": cfg.entropy_bonus}
 
     parse = _parser().parse_args
     plain = {"noise_color": 0.0, "entropy_bonus": 0.0}
-    # the oracle explores by default, the learners from preferences do not; flags override both
-    assert explore(sac_config(parse(["sac", "--world", "d1", "--out", "x"]))) == ORACLE_EXPLORATION != plain
-    assert explore(sac_config(parse(["pebble", "--world", "d1", "--out", "x"]))) == plain
+    # every learner explores alike by default; flags override it
+    for cmd in ("sac", "pebble", "drlhp", "prefbias", "eps"):
+        assert explore(parse([cmd, "--world", "d1", "--out", "x"])) == EXPLORATION != plain
     flags = ["--noise-color", "2", "--entropy-bonus", "0.5"]
     assert explore(sac_config(parse(["drlhp", "--world", "d1", "--out", "x", *flags]))) == {
         "noise_color": 2.0,
         "entropy_bonus": 0.5,
     }
     assert explore(sac_config(parse(["sac", "--world", "d1", "--out", "x", "--noise-color", "0"])))["noise_color"] == 0
-    # and so do the experiments' oracle jobs
-    fast = learners("fast")
-    assert explore(fast.sac.sac) == ORACLE_EXPLORATION and explore(fast.pebble.sac) == plain
+    # and so do the experiments' full learners, the oracle with the rest
+    full = learners("full")
+    assert explore(full.sac.sac) == explore(full.pebble.sac) == explore(full.prefbias.sac) == EXPLORATION
+    person = ec.learners("full")
+    assert explore(person.eps.sac) == explore(person.sac.sac) == EXPLORATION
+    assert explore(person.person.sac) == plain  # the simulated person's π_H is not one of the learners
 
 
 @pytest.mark.slow

@@ -66,17 +66,20 @@ from .sac import SACConfig, sac_init
 from .sac_loop import LoopState, evaluate, loop_init, run_chunk
 
 METHODS = ("sac", "pebble", "drlhp")
-ORACLE_EXPLORATION = {"noise_color": 1.0, "entropy_bonus": 1.0}
-"""What the SAC oracle adds to its SACConfig by default: pink action noise and a decaying
-state-entropy bonus (see :class:`~mindgap.algorithms.sac.SACConfig`). Without them one seed in
-five never finds the goal of nav2 and d2–d4 (README, "Learning from preferences")."""
-ABSORBING_DEFAULT = {"sac": False, "pebble": False, "drlhp": False}
+EXPLORATION = {"noise_color": 1.0, "entropy_bonus": 1.0}
+"""How every learner's SAC explores by default (:attr:`Schedule.sac`: SAC, PEBBLE, DRLHP,
+PrefBias, EPS): pink action noise and a decaying state-entropy bonus (see
+:class:`~mindgap.algorithms.sac.SACConfig`). With plain white noise one seed in five never
+found the goal of nav2 and d2–d4 with the true reward, and EPS took d3's icy road in 1 seed
+of 3 (3 of 3 with it; README, "Learning from preferences")."""
+ABSORBING_DEFAULT = {"sac": False, "pebble": True, "drlhp": False}
 """Whether each method's preset (:func:`method_config`) gives the learned reward absorbing states.
 
-Off, by measurement (PEBBLE, true teacher, 800 queries, 5 seeds): on d1 (60 000 steps) it
-lifts the final return from −93.8 ± 2.5 to 56.8 ± 79.1 (4 of 5 seeds at the goal; SAC
-101.2), short of 90% of SAC; on nav1 (30 000 steps) it gave −9.5 ± 17.7 against −1.0 ± 0.4,
-one slow seed still unstable at the end.
+PEBBLE: on, by measurement (true teacher, 800 queries, 80 a round, 5 seeds, with
+:data:`EXPLORATION`): d1 (60 000 steps) 100.1 ± 0.7, 99% of the SAC oracle; nav1
+(30 000 steps) −1.2 ± 0.2, 99% of the oracle's improvement over never arriving. With
+plain exploration it lifted d1 from −93.8 ± 2.5 to 56.8 ± 79.1 but left one nav1 seed
+unstable (−9.5 ± 17.7 against −1.0 ± 0.4). DRLHP: off, unmeasured with it.
 """
 
 
@@ -98,8 +101,8 @@ class Schedule:
     """Steps between evaluations of the greedy policy under the true reward."""
     eval_episodes: int = 10
     """Episodes per evaluation."""
-    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000)
-    """The agent's SAC."""
+    sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=1000, **EXPLORATION)
+    """The agent's SAC (exploring as :data:`EXPLORATION` says)."""
     queries: int = 800
     """Total query budget (pairs shown)."""
     per_round: int = 50
@@ -194,11 +197,6 @@ class PbRLConfig(Schedule):
     def absorbing_fn(self):
         """The ``absorbing_fn`` of relabel and run_chunk: r_abs of the ensemble mean, or None."""
         return absorbing_reward if self.absorbing else None
-
-
-def oracle_sac(sac: SACConfig) -> SACConfig:
-    """``sac`` with the oracle's exploration (:data:`ORACLE_EXPLORATION`)."""
-    return dataclasses.replace(sac, **ORACLE_EXPLORATION)
 
 
 def method_config(method: str, **overrides) -> PbRLConfig:

@@ -227,36 +227,33 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
     all_idx = jax.random.randint(k_idx, (2 * cfg.updates, cfg.batch_size), 0, n)
     all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 2))
 
-    def loss_fn(flat, idx, keys):
-        reward, belief = unravel_w(flat[0]), unravel_phi(flat[1])
+    def loss_fn(w, phi, idx, keys):
+        reward, belief = unravel_w(w), unravel_phi(phi)
         seg_a, seg_b = jax.tree.map(lambda x: x[idx], data.seg_a), jax.tree.map(lambda x: x[idx], data.seg_b)
         nll = expected_nll(reward, belief, state.norm, seg_a, seg_b, data.label[idx], keys, cfg)
         kl_w = kl_divergence(reward, state.reward_prior, cfg.reward_prior_std)
         kl_phi = kl_divergence(belief, state.belief_prior, cfg.belief_prior_std)
         return nll + kl_weight * (kl_w + kl_phi)
 
-    def half_step(carry, xs):
-        # One program for both halves of a round: the gradient of the joint loss with respect
-        # to Ω_w is that of §3.3.3.1 (KL[q(φ)‖p(φ)] does not depend on Ω_w), and vice versa;
-        # ``on_w`` decides which posterior (and which Adam state) takes the step.
+    def step(carry, xs):
+        # The gradient of the joint loss with respect to Ω_w is that of §3.3.3.1
+        # (KL[q(φ)‖p(φ)] does not depend on Ω_w), and vice versa. Each half differentiates
+        # only its own posterior: the other network's backward pass is never computed.
         (w, phi), (opt_w, opt_phi) = carry
-        idx, keys, on_w = xs
-        loss, (g_w, g_phi) = jax.value_and_grad(loss_fn)((w, phi), idx, keys)
-        upd_w, new_opt_w = opt.update(g_w, opt_w, w)
-        upd_phi, new_opt_phi = opt.update(g_phi, opt_phi, phi)
+        idx, keys = xs
+        loss_w, g_w = jax.value_and_grad(loss_fn, argnums=0)(w, phi, idx[0], keys[0])
+        upd, opt_w = opt.update(g_w, opt_w, w)
+        w = w + upd
+        loss_phi, g_phi = jax.value_and_grad(loss_fn, argnums=1)(w, phi, idx[1], keys[1])
+        upd, opt_phi = opt.update(g_phi, opt_phi, phi)
+        return ((w, phi + upd), (opt_w, opt_phi)), (loss_w, loss_phi)
 
-        def pick(cond, new, old):
-            return jax.tree.map(lambda a, b: jnp.where(cond, a, b), new, old)
-
-        w, opt_w = pick(on_w, (w + upd_w, new_opt_w), (w, opt_w))
-        phi, opt_phi = pick(~on_w, (phi + upd_phi, new_opt_phi), (phi, opt_phi))
-        return ((w, phi), (opt_w, opt_phi)), loss
-
-    on_w = jnp.arange(2 * cfg.updates) % 2 == 0  # w first, then φ, in every round
+    # round i: a step on Ω_w with minibatch 2i, then one on Ω_φ with minibatch 2i + 1
+    pairs = (all_idx.reshape(cfg.updates, 2, cfg.batch_size), all_keys.reshape(cfg.updates, 2, *all_keys.shape[1:]))
     carry = ((flat_w, flat_phi), (state.opt_w, state.opt_phi))
-    ((flat_w, flat_phi), (opt_w, opt_phi)), losses = jax.lax.scan(half_step, carry, (all_idx, all_keys, on_w))
+    ((flat_w, flat_phi), (opt_w, opt_phi)), (losses_w, _) = jax.lax.scan(step, carry, pairs)
     state = state._replace(reward=unravel_w(flat_w), belief=unravel_phi(flat_phi), opt_w=opt_w, opt_phi=opt_phi)
     p = preference_prob(state.reward.mean, state.belief.mean, state.norm, data.seg_a, data.seg_b, cfg)
     seen = jnp.arange(data.label.shape[0]) < data.count
     hit = ((p > 0.5) == (data.label > 0.5)) | (data.label == 0.5)
-    return state, FitInfo(losses[-2], jnp.sum(hit & seen) / n)
+    return state, FitInfo(losses_w[-1], jnp.sum(hit & seen) / n)

@@ -11,7 +11,7 @@ import io
 import json
 from pathlib import Path
 
-from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS, ORACLE_EXPLORATION
+from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS, Schedule
 from ..algorithms.sac import SACConfig
 
 
@@ -59,20 +59,20 @@ def add_parsers(sub) -> None:
                 help="with --absorbing: one absorbing state per terminal state (default: terminal) "
                 "or the single one of Kostrikov et al. (single)",
             )
-        add_run_flags(p, ORACLE_EXPLORATION if method == "sac" else None)
+        add_run_flags(p)
 
 
-def add_run_flags(p, exploration: dict | None = None) -> None:
+def add_run_flags(p) -> None:
     """Flags every learning command shares: steps, seeds, the SAC settings, the run folder.
 
-    ``exploration``: defaults of ``--noise-color`` and ``--entropy-bonus`` other than
-    SACConfig's (the SAC oracle's :data:`~mindgap.algorithms.pbrl.ORACLE_EXPLORATION`).
+    The SAC defaults are the engine's (:attr:`~mindgap.algorithms.pbrl.Schedule.sac`, which
+    explores with :data:`~mindgap.algorithms.pbrl.EXPLORATION`).
     """
     p.add_argument("--steps", type=int, default=40_000, help="environment steps per seed (default 40000)")
     p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
     p.add_argument("--seed", type=int, default=0, help="base seed")
     p.add_argument("--hidden", default="64,64", help="hidden widths of actor and critics (default 64,64)")
-    d = SACConfig(**(exploration or {}))
+    d = Schedule.sac
     p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random steps before SAC updates")
     p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
     p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")

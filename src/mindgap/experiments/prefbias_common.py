@@ -97,7 +97,7 @@ def learners(preset: str) -> Learners:
     return Learners(
         prefbias=pb,
         pebble=pbrl.method_config("pebble", **_schedule(pb), **rounds),
-        sac=pbrl.method_config("sac", **{**_schedule(pb), "sac": pbrl.oracle_sac(pb.sac)}),
+        sac=pbrl.method_config("sac", **_schedule(pb)),
     )
 
 
