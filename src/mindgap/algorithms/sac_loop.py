@@ -129,20 +129,18 @@ def run_chunk(
     def body(ls: LoopState, _):
         key, k_act, k_env, k_reset, k_upd = jax.random.split(ls.key, 5)
         obs = observe(ls.env, world_params)
-        noise = ls.noise
+        noise, eps = ls.noise, None  # eps None: white noise
         if cfg.noise_color > 0:  # a fresh sequence at each episode start (and every noise_length steps)
             i = ls.env.t % cfg.noise_length
             fresh = colored_noise(jax.random.fold_in(k_act, 1), cfg.noise_color, cfg.noise_length, noise.shape[1])
             noise = jnp.where(i == 0, fresh, noise)
             eps = noise[i]
-            if phase == "random":
-                act = jnp.tanh(eps)
-            else:
-                act = sample_action(ls.sac.params.actor, obs, k_act, eps)[0]
-        elif phase == "random":
+        if phase != "random":
+            act = sample_action(ls.sac.params.actor, obs, k_act, eps)[0]
+        elif eps is None:
             act = jax.random.uniform(k_act, (2,), minval=-1.0, maxval=1.0)
         else:
-            act = sample_action(ls.sac.params.actor, obs, k_act)[0]
+            act = jnp.tanh(eps)
         out = step(k_env, ls.env, act, world_params)
         next_obs = observe(out.state, world_params)
         if reward_fn is None:

@@ -71,8 +71,9 @@ def add_run_flags(p) -> None:
     p.add_argument("--steps", type=int, default=40_000, help="environment steps per seed (default 40000)")
     p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
     p.add_argument("--seed", type=int, default=0, help="base seed")
-    p.add_argument("--hidden", default="64,64", help="hidden widths of actor and critics (default 64,64)")
     d = Schedule.sac
+    hidden = ",".join(str(h) for h in d.hidden)
+    p.add_argument("--hidden", default=hidden, help=f"hidden widths of actor and critics (default {hidden})")
     p.add_argument("--learning-starts", type=int, default=d.learning_starts, help="random steps before SAC updates")
     p.add_argument("--utd", type=int, default=d.utd, help=f"SAC updates per environment step (default {d.utd})")
     p.add_argument("--batch", type=int, default=d.batch_size, help=f"SAC batch size (default {d.batch_size})")
