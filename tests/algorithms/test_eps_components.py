@@ -144,10 +144,13 @@ def test_the_reshaped_reward_plugs_into_the_sac_loop(d1, key):
 
 
 def test_policy_entropy_weight_is_sacs_alpha():
-    assert eps_sac_config(SACConfig(), 2.5).alpha == 2.5
-    assert eps_sac_config(SACConfig(reward_scale=0.1), 2.5).alpha == pytest.approx(0.25)
-    with pytest.raises(ValueError):
-        eps_sac_config(SACConfig(), -1.0)
+    assert eps_sac_config(SACConfig(), 2.5, 1.0).alpha == 2.5
+    assert eps_sac_config(SACConfig(reward_scale=0.1), 2.5, 5.0).alpha == pytest.approx(0.05)
+    assert eps_sac_config(SACConfig(), 0.0, 7.0).alpha == 0.0  # λ = 0: no entropy bonus at all
+    with pytest.raises(ValueError, match="non-negative"):
+        eps_sac_config(SACConfig(), -1.0, 7.0)
+    with pytest.raises(ValueError, match="positive"):
+        eps_sac_config(SACConfig(), 2.0, 0.0)
 
 
 # ---------------------------------------------------------------- the explicability score (Eq. 4.4)

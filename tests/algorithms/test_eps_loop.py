@@ -18,12 +18,15 @@ from mindgap.teachers.expectation import ExpectationTeacher
 
 def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
     cfg = eps_config("fast", lam=2.5, sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250))
-    assert cfg.agent_sac().alpha == pytest.approx(2.5)  # λ H_π through SAC's own α (reward scale 1)
+    assert cfg.agent_sac().alpha == pytest.approx(2.5 / cfg.nats_per_unit)  # λ H_π / s_H: SAC's own α (reward scale 1)
+    assert eps_config("fast", lam=2.5, nats_per_unit=1.0).agent_sac().alpha == pytest.approx(2.5)
     assert eps_config("fast", method="drlhp").agent_sac().alpha is None  # the baseline tunes α
     with pytest.raises(ValueError, match="unknown method"):
         eps_config("fast", method="ppo")
     with pytest.raises(ValueError, match="non-negative"):
         eps_config("fast", lam=-1.0)
+    with pytest.raises(ValueError, match="positive"):
+        eps_config("fast", nats_per_unit=0.0)
     with pytest.raises(ValueError, match="preset"):
         eps_config("huge")
 
@@ -61,8 +64,10 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
 def test_cli_runs_writes_its_outputs_and_resumes(tmp_path, monkeypatch):
     monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "run"
-    argv = ["eps", "--world", "d1", "--fast", "--seeds", "2", "--rollouts", "4", "--out", str(out), "--quiet"]
+    argv = ["eps", "--world", "d1", "--fast", "--seeds", "2", "--rollouts", "4", "--nats-per-unit", "3"]
+    argv += ["--out", str(out), "--quiet"]
     assert main(argv) == 0
+    assert json.loads((out / "config.json").read_text())["config"]["nats_per_unit"] == 3.0
     for name in ("curve.csv", "curve.png", "trajectories.png", "surrogate.png", "explicability.json", "summary.json"):
         assert (out / name).stat().st_size > 0, name
     summary = json.loads((out / "summary.json").read_text())

@@ -15,11 +15,13 @@ checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
      (§4.3.3) and relabel the whole buffer with the reshaped reward;
 
 3. in between, SAC on the reshaped reward ``r_A + λ(u_H + H_T)`` with the fixed entropy
-   coefficient α = λ·reward_scale, so that SAC's own entropy bonus is Eq. 4.6's λ H_π
-   (line 10; :mod:`~mindgap.algorithms.eps_reward`).
+   coefficient α = λ·reward_scale/s_H, so that SAC's own entropy bonus is Eq. 4.6's
+   policy-entropy term (line 10; :mod:`~mindgap.algorithms.eps_reward`).
 
-The entropy weight is λ itself (the scale of Eq. 4.6, the same in every world); u_H has unit
-spread over the buffer, so λ weighs it against r_A the same way in every world.
+u_H has unit spread over the buffer, so λ weighs it against r_A the same way in every
+world. The policy entropy is weighted λ/s_H, with s_H = ``nats_per_unit`` (7) the same in
+every world: the spread, in nats, that one unit of the standardised u_H stands for
+(:mod:`~mindgap.algorithms.eps_reward`, "Scale of H_π").
 
 ``method="drlhp"`` is the DRLHP baseline of §4.4.1.1: the same preferences and ensemble, the
 agent optimising the standardised u_H alone (no r_A, no H_T; SAC's α tuned as usual).
@@ -74,7 +76,8 @@ class EPSConfig(Schedule):
     """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument).
 
     The schedule's fields (steps, chunks, evaluation, SAC, budget, teacher knobs) are
-    :class:`~mindgap.algorithms.pbrl.Schedule`'s; for EPS the SAC's α is replaced by λ·reward_scale.
+    :class:`~mindgap.algorithms.pbrl.Schedule`'s; for EPS the SAC's α is replaced by
+    λ·reward_scale/nats_per_unit.
     """
 
     method: str = "eps"
@@ -93,6 +96,14 @@ class EPSConfig(Schedule):
     """uniform, disagreement or entropy (uncertainty sampling, §4.3.3)."""
     candidates: int = 10
     """Pairs drawn per query kept (score-based samplers)."""
+    nats_per_unit: float = 7.0
+    """s_H: the per-step spread, in nats, of the person's log T_H + log π_H that one unit of the
+    standardised u_H stands for; the policy entropy is weighted λ/s_H (α = λ·reward_scale/s_H) so
+    that u_H + H_π keeps the balance of the KL it comes from. Fixed across worlds: measured 6.6–7.2
+    over uniform-random transitions of d1–d4 and 7.4 over EPS's d3 buffers. With 7, λ = 2 gives
+    α ≈ 0.29. A weight of λ itself (``nats_per_unit=1``, α = 2 — eight times SAC's tuned α in d3)
+    gave a wider policy, less explicable than SAC's on the same road (d3: −501 against −425;
+    narrowing the trained policies' pre-tanh std by e⁻¹ alone took them to −399)."""
     centre_entropy: bool = False
     """Subtract H_T's mean over the buffer, as u_H is centred (a differential entropy's constant
     depends on the units of the state). Off by default, as Eq. 4.6 is written: measured on d1
@@ -107,13 +118,15 @@ class EPSConfig(Schedule):
             raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
         if self.lam < 0:
             raise ValueError(f"λ must be non-negative, got {self.lam}")
+        if not self.nats_per_unit > 0:
+            raise ValueError(f"nats_per_unit must be positive, got {self.nats_per_unit}")
         self.check_schedule()
         if self.queries < 1 or self.per_round < 1:
             raise ValueError("queries and per_round must be at least 1")
 
     def agent_sac(self) -> SACConfig:
-        """The SAC the agent runs: α fixed to λ·reward_scale for EPS, as configured for DRLHP."""
-        return eps_sac_config(self.sac, self.lam) if self.method == "eps" else self.sac
+        """The SAC the agent runs: α fixed to λ·reward_scale/nats_per_unit for EPS, as configured for DRLHP."""
+        return eps_sac_config(self.sac, self.lam, self.nats_per_unit) if self.method == "eps" else self.sac
 
 
 _FAST = dict(

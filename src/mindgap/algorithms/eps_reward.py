@@ -7,11 +7,21 @@ Eq. 4.6 maximises ``E Σ_t γ^t [r_A + λ (u_H + H_T[s'|s,a] + H_π[a|s])]``. It
   or T_A changes (§4.3.3: "we relabel the data samples every time u_H is updated").
 * **λ H_π** is SAC's own entropy bonus: SAC maximises ``E Σ_t γ^t [c·r_t + α H_π(·|s_t)]``
   (its critic target subtracts ``α log π(a'|s')`` and its actor minimises
-  ``α log π − Q``), so a fixed ``α = λ·c`` (``c`` = ``SACConfig.reward_scale``) gives Eq. 4.6
-  exactly, the reward scaled by ``c``: :func:`eps_sac_config`. Both entropies, and the
-  log π_H inside u_H, are densities over the squashed actions, so the tanh Jacobian of
+  ``α log π − Q``), so a fixed ``α`` gives Eq. 4.6's policy-entropy term with the reward
+  scaled by ``c`` (``SACConfig.reward_scale``): :func:`eps_sac_config`. Both entropies, and
+  the log π_H inside u_H, are densities over the squashed actions, so the tanh Jacobian of
   H_π and that of log π_H cancel as they do in the KL of Eq. 4.4. ``λ = 0`` means
   ``α = 0``: no entropy bonus at all, as Eq. 4.6 says.
+
+Scale of H_π. In Eq. 4.2, u_H (= log T_H + log π_H) and H_π are two parts of one −KL, both
+in nats, and the policy that maximises ``E log π_H + H_π`` is π_H itself. Standardising u_H
+(below) divides its log π_H by the spread ``s_H`` of the person's per-step log-likelihood,
+which preferences cannot reveal (Bradley–Terry answers fix no scale, and the ensemble's
+rewards are bounded). Weighting H_π by λ would then make the KL-optimal policy π_H tempered
+by ``s_H`` (each action dimension ``√s_H`` times wider), so H_π is weighted ``λ / s_H``:
+``α = λ·c / s_H`` with one fixed ``s_H`` for every world (``EPSConfig.nats_per_unit``,
+7 nats: the spread of the simulated persons' ``log T_H + log π_H`` is 6.6–7.2 nats per step
+over uniform-random transitions of d1–d4, 7.4 over EPS's own d3 buffers).
 
 Normalisation of u_H (§4.3.3: "we simply normalize the learned rewards"): Bradley–Terry
 fixes u_H only up to an additive constant per step and a scale tied to the person's β,
@@ -129,11 +139,17 @@ def eps_reward(params: EPSRewardParams, obs: jax.Array, act: jax.Array, next_obs
     return reshape(r_a, normalised_u(params, obs, act, next_obs), environment_entropy(params, obs, act), params.lam)
 
 
-def eps_sac_config(base: SACConfig, lam: float) -> SACConfig:
-    """``base`` with a fixed entropy coefficient α = λ · reward_scale: SAC's H_π becomes Eq. 4.6's λ H_π."""
+def eps_sac_config(base: SACConfig, lam: float, nats_per_unit: float) -> SACConfig:
+    """``base`` with a fixed entropy coefficient α = λ · reward_scale / s_H (``s_H`` = ``nats_per_unit``).
+
+    SAC's H_π becomes Eq. 4.6's policy-entropy term on the scale of the standardised u_H
+    (module docstring, "Scale of H_π").
+    """
     if lam < 0:
         raise ValueError(f"λ must be non-negative, got {lam}")
-    return dataclasses.replace(base, alpha=float(lam) * base.reward_scale)
+    if not nats_per_unit > 0:
+        raise ValueError(f"nats_per_unit must be positive, got {nats_per_unit}")
+    return dataclasses.replace(base, alpha=float(lam) * base.reward_scale / float(nats_per_unit))
 
 
 def _filled_stats(values: jax.Array, buf: Replay) -> tuple[jax.Array, jax.Array]:

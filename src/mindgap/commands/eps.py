@@ -31,6 +31,12 @@ def add_parser(sub) -> None:
     p.add_argument("--beta", type=float, help="person's rationality (default: deterministic answers)")
     p.add_argument("--mistake", type=float, default=0.0, help="person's probability of a flipped answer")
     p.add_argument(
+        "--nats-per-unit",
+        type=float,
+        help="s_H: nats of the person's per-step log-likelihood per unit of the standardised u_H; "
+        "the policy entropy is weighted λ/s_H (default 7)",
+    )
+    p.add_argument(
         "--centre-entropy",
         action="store_true",
         help="subtract H_T's mean over the buffer (default: Eq. 4.6 as written, its constant kept)",
@@ -76,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
         sac=sac_config(args),
         sampler=args.sampler,
         centre_entropy=args.centre_entropy,
+        nats_per_unit=base.nats_per_unit if args.nats_per_unit is None else args.nats_per_unit,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )
     for name in ("queries", "per_round"):
