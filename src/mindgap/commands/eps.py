@@ -82,10 +82,9 @@ def run(args: argparse.Namespace) -> int:
         sac=sac_config(args),
         sampler=args.sampler,
         centre_entropy=args.centre_entropy,
-        nats_per_unit=base.nats_per_unit if args.nats_per_unit is None else args.nats_per_unit,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )
-    for name in ("queries", "per_round"):
+    for name in ("queries", "per_round", "nats_per_unit"):
         if getattr(args, name) is not None:
             over[name] = getattr(args, name)
     cfg = eps_config(preset, **over)
