@@ -20,11 +20,18 @@ from mindgap.algorithms.prefbias_inference import (
 )
 from mindgap.envs.terrain import TerrainState, load_world, observe, step
 from mindgap.envs.terrain.layout import FLOOR, ICE, SAND
-from mindgap.feedback.segments import Segments
+from mindgap.feedback.segments import AbsorbingSegments, Segments
 from mindgap.models.bayes import init_gaussian
 from mindgap.models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes, train_dynamics
 from mindgap.models.mlp import init_mlp
-from mindgap.models.prefbias_nets import REWARD_BOUND, belief_noise_map, reward_sizes, table_noise_map
+from mindgap.models.prefbias_nets import (
+    REWARD_BOUND,
+    RewardWeights,
+    absorbing_value,
+    belief_noise_map,
+    reward_sizes,
+    table_noise_map,
+)
 from mindgap.models.reward_ensemble import PrefData
 from mindgap.teachers.preference import TeacherConfig, answer
 
@@ -254,3 +261,62 @@ def test_fit_recovers_a_planted_noisy_ice_belief(key):
         return float(np.sqrt(np.nanmean((np.asarray(m) - target) ** 2)))
 
     assert rms(maps[0]) < 0.7 * rms(prior_map), (rms(maps[0]), rms(prior_map))
+
+
+def test_absorbing_steps_count_r_abs_of_the_terminal_state(key):
+    """With absorbing states S(τ) adds r_abs(s_T) per absorbed step, s_T where the last real step ended."""
+    w, phi, norm, seg_a, seg_b = _tiny_problem(key)
+    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02))
+    weights = RewardWeights(w, 0.05 * jax.random.normal(jax.random.fold_in(key, 7), (256,)))
+    # b ended after its first step (a goal or a pit): its second step is absorbing
+    seg_a = AbsorbingSegments(*seg_a, jnp.zeros((1, 2), bool))
+    seg_b = AbsorbingSegments(*seg_b, jnp.array([[False, True]]))
+    s_t = np.asarray(seg_b.next_obs[0, 0], np.float64)
+    r_abs = float(absorbing_value(weights, jnp.asarray(s_t)[None])[0])
+    assert abs(r_abs) > 0.05  # a head that matters
+    s_a = _np_score(w, phi, norm, seg_a.obs[0], seg_a.act[0], seg_a.next_obs[0], seg_a.mask[0], 0.02)
+    s_b = _np_score(w, phi, norm, seg_b.obs[0], seg_b.act[0], seg_b.next_obs[0], seg_b.mask[0], 0.02) + r_abs
+    p = 1.0 / (1.0 + np.exp(-(s_a - s_b)))
+    np.testing.assert_allclose(float(preference_prob(weights, phi, norm, seg_a, seg_b, cfg)[0]), p, rtol=1e-4)
+    # the same segments without their absorbing steps: the head is not read
+    plain = preference_prob(weights, phi, norm, Segments(*seg_a[:4]), Segments(*seg_b[:4]), cfg)
+    p_plain = 1.0 / (1.0 + np.exp(-(s_a - s_b + r_abs)))
+    np.testing.assert_allclose(float(plain[0]), p_plain, rtol=1e-4)
+
+
+def test_fit_learns_which_terminal_state_is_worse(key):
+    """Pairs that differ only in where they ended (left half: a pit, right half: a goal): r_abs learns the order."""
+    pairs, length = 64, 4
+    ks = jax.random.split(key, 4)
+
+    def seg(k, side):
+        obs = jax.random.uniform(k, (pairs, length, 2), minval=-0.2, maxval=0.2)
+        end = jnp.stack(
+            [
+                side * jax.random.uniform(jax.random.fold_in(k, 1), (pairs,), minval=0.5, maxval=0.9),
+                jax.random.uniform(jax.random.fold_in(k, 2), (pairs,), minval=-0.5, maxval=0.5),
+            ],
+            -1,
+        )
+        nxt = obs.at[:, 1].set(end)  # the second step ends the episode at `end`
+        mask = jnp.arange(length) < 2
+        mask = jnp.broadcast_to(mask, (pairs, length))
+        act = jnp.zeros((pairs, length, 2))
+        return AbsorbingSegments(obs, act, nxt, mask, ~mask)
+
+    goal, pit = seg(ks[0], 1.0), seg(ks[1], -1.0)
+    swap = jax.random.bernoulli(ks[2], 0.5, (pairs,))
+    pick = lambda a, b: jax.tree.map(lambda x, y: jnp.where(swap.reshape(-1, *[1] * (x.ndim - 1)), y, x), a, b)  # noqa: E731
+    seg_a, seg_b = pick(goal, pit), pick(pit, goal)
+    label = (~swap).astype(jnp.float32)  # a is preferred when it is the goal segment
+    data = PrefData(seg_a, seg_b, label, jnp.asarray(pairs, jnp.int32))
+    dcfg = DynamicsConfig(hidden=(8,))
+    cfg = PrefBiasConfig(reward_hidden=(8,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3, absorbing=True)
+    norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.full(2, 0.05))
+    psi = init_mlp(jax.random.fold_in(key, 9), dynamics_sizes(2, 2, dcfg.hidden))
+    state = prefbias_init(ks[3], 2, 2, cfg, DynamicsModel(psi, norm))
+    state, info = jax.jit(fit, static_argnames="cfg")(state, data, jax.random.fold_in(key, 5), cfg)
+    assert float(info.accuracy) > 0.9
+    ends = jnp.array([[0.7, 0.0], [-0.7, 0.0]])
+    r_goal, r_pit = np.asarray(absorbing_value(state.reward.mean, ends))
+    assert r_goal > r_pit + 0.5, (r_goal, r_pit)

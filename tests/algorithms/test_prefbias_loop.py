@@ -1,6 +1,7 @@
 """PrefBias's loop (Algorithm 2): it runs under jit and vmap, resumes exactly, relabels, and its CLI writes its files."""
 
 import csv
+import dataclasses
 import json
 
 import jax
@@ -13,7 +14,8 @@ from mindgap.algorithms import pbrl, prefbias
 from mindgap.algorithms.prefbias import prefbias_config, train
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
-from mindgap.models.prefbias_nets import posterior_reward
+from mindgap.feedback.replay import terminal_bonus
+from mindgap.models.prefbias_nets import posterior_absorbing, posterior_reward
 from mindgap.planning.terrain import rollouts
 
 # two routes to the goal, an icy upper one and a floor lower one; the person believes ice is slippery
@@ -31,6 +33,22 @@ step = -1.0
 progress = 1.0
 [beliefs.human]
 ice = { noise = 0.3 }
+"""
+
+# the start between a pit and the goal: every few random steps an episode ends
+POCKET = """name = "pocket"
+horizon = 30
+layout = '''
+#######
+#PP.SG#
+#######
+'''
+[rewards]
+goal = 10.0
+pit = -10.0
+step = -1.0
+[beliefs.human]
+pit_noise = 1.0
 """
 
 
@@ -80,8 +98,13 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
         train(icy, other, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
 
-def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy):
-    cfg = prefbias_config("fast")
+@pytest.mark.parametrize("absorbing", [False, True])
+def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, absorbing, tmp_path):
+    if absorbing:  # a world whose episodes end every few steps, so that queries hold absorbing steps
+        (tmp_path / "pocket.toml").write_text(POCKET)
+        icy = load_world(str(tmp_path / "pocket.toml"))
+    fast = prefbias_config("fast")
+    cfg = prefbias_config("fast", prefbias=dataclasses.replace(fast.prefbias, absorbing=absorbing))
     carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.params, cfg)
     for phase in ("random", "explore"):
         carry = prefbias._chunk(carry, icy.params, cfg, phase)
@@ -93,6 +116,12 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy):
     assert np.all(np.isfinite(np.asarray(info.loss)))
     buf, size = carry.loop.replay, int(carry.loop.replay.size[0])
     expect = jax.vmap(posterior_reward)(carry.model.reward.mean, buf.obs, buf.act, buf.next_obs)
+    assert hasattr(carry.prefs.seg_a, "absorbed") == absorbing
+    if absorbing:  # terminal transitions also carry the value of the absorbing state they enter
+        assert np.asarray(carry.prefs.seg_a.absorbed).any()
+        r_abs = jax.vmap(posterior_absorbing)(carry.model.reward.mean, buf.next_obs)
+        assert np.abs(np.asarray(r_abs)[np.asarray(buf.terminal)]).max() > 0  # the fit moved r_abs off 0
+        expect = expect + jnp.where(buf.terminal, terminal_bonus(r_abs, cfg.sac.gamma), 0.0)
     after = np.asarray(buf.reward)
     np.testing.assert_allclose(after[:, :size], np.asarray(expect)[:, :size], rtol=1e-5, atol=1e-6)
     assert not np.allclose(after[:, :size], before[:, :size])

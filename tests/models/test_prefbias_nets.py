@@ -7,15 +7,20 @@ import numpy as np
 from mindgap.envs.terrain import load_world
 from mindgap.envs.terrain.layout import FLOOR, ICE, PIT, SAND, WALL
 from mindgap.feedback.replay import relabel, replay_add, replay_init
+from mindgap.models.bayes import Gaussian, init_gaussian, sample_params
 from mindgap.models.gaussian_dynamics import Norm, dynamics_sizes
 from mindgap.models.mlp import init_mlp
 from mindgap.models.prefbias_nets import (
     REWARD_BOUND,
+    absorbing_local,
+    absorbing_value,
     belief_noise_map,
     belief_predict,
+    posterior_absorbing,
     posterior_reward,
     reward_sizes,
     reward_value,
+    reward_weights_init,
     table_noise_map,
 )
 
@@ -75,3 +80,57 @@ def test_table_noise_map_reads_the_belief_table():
     noise2 = np.asarray(table_noise_map(nav2.belief()))
     assert np.asarray(nav2.params.grid)[2, 5] == PIT
     assert noise2[1, 5] > 2 * noise2[6, 1]
+
+
+def _np_features(s_t):
+    """Radial basis features of terminal states, by hand: 16 × 16 bumps on [−1, 1]², height 20, cut at 2 widths."""
+    axis = np.linspace(-1.0, 1.0, 16)
+    centres = np.stack(np.meshgrid(axis, axis, indexing="ij"), -1).reshape(-1, 2)
+    width = 2.0 / 15
+    sq = ((np.asarray(s_t, np.float64)[:, None, :] - centres) ** 2).sum(-1)
+    return np.where(sq < (2 * width) ** 2, 20.0 * np.exp(-0.5 * sq / width**2), 0.0)
+
+
+def test_absorbing_head_is_a_bounded_linear_function_of_terminal_features(key):
+    k_w, k_a, k_s = jax.random.split(key, 3)
+    weights = reward_weights_init(k_w, 2, 2, (8,), absorbing=True)
+    assert weights.absorb.shape == (256,) and not np.any(np.asarray(weights.absorb))  # r_abs = 0 a priori
+    np.testing.assert_array_equal(absorbing_value(weights, jnp.zeros((3, 2))), 0.0)
+    weights = weights._replace(absorb=0.2 * jax.random.normal(k_a, (256,)))
+    s_t = jax.random.uniform(k_s, (5, 2), minval=-1, maxval=1)
+    raw = _np_features(s_t) @ np.asarray(weights.absorb, np.float64)
+    expect = REWARD_BOUND * np.tanh(raw / REWARD_BOUND)
+    np.testing.assert_allclose(absorbing_value(weights, s_t), expect, rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(posterior_absorbing(weights, s_t), expect, rtol=1e-4, atol=1e-5)
+    # the step reward reads the MLP alone, as with plain MLP weights
+    obs, act = s_t, jnp.ones((5, 2))
+    np.testing.assert_array_equal(reward_value(weights, obs, act), reward_value(weights.net, obs, act))
+    # without a head: the MLP's parameters alone, the same MLP, no absorbing reward
+    off = reward_weights_init(k_w, 2, 2, (8,), absorbing=False)
+    assert jax.tree.structure(off) == jax.tree.structure(weights.net)
+    np.testing.assert_array_equal(reward_value(off, obs, act), reward_value(weights, obs, act))
+    np.testing.assert_array_equal(absorbing_value(off, s_t), 0.0)
+
+
+def test_absorbing_local_reparameterisation_matches_weight_sampling(key):
+    """φ·μ + √(φ²σ²) ε has the mean and variance of φ·w, w ~ q (the soft bound is ≈ linear at this scale)."""
+    k_w, k_m, k_s, k_draw = jax.random.split(key, 4)
+    mean = reward_weights_init(k_w, 2, 2, (4,), absorbing=True)
+    mean = mean._replace(absorb=0.01 * jax.random.normal(k_m, (256,)))
+    sigma = jax.tree.map(lambda x: jnp.full_like(x, 0.005), mean)
+    post = Gaussian(mean, jax.tree.map(lambda s: jnp.log(jnp.expm1(s)), sigma))
+    s_t = jnp.array([[0.1, -0.3], [0.7, 0.7]])
+    n = 20000
+    rows = jnp.broadcast_to(s_t, (n, 2, 2))
+    local = np.asarray(absorbing_local(post, rows, k_draw))  # a draw per row
+    weights = jax.vmap(lambda k: sample_params(post, k))(jax.random.split(jax.random.fold_in(k_draw, 1), n))
+    sampled = np.asarray(jax.vmap(absorbing_value, in_axes=(0, None))(weights, s_t))
+    phi = _np_features(s_t)
+    exact_var = (phi**2) @ np.full(256, 0.005**2)
+    for draws in (local, sampled):
+        centre = phi @ np.asarray(mean.absorb, np.float64)
+        np.testing.assert_allclose(draws.mean(0), centre, atol=4 * np.sqrt(exact_var / n).max())
+        np.testing.assert_allclose(draws.var(0), exact_var, rtol=0.05)
+    # without a head there is nothing to draw
+    off = init_gaussian(reward_weights_init(k_w, 2, 2, (4,), absorbing=False), 0.02)
+    np.testing.assert_array_equal(absorbing_local(off, s_t, k_draw), 0.0)

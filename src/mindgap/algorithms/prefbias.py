@@ -16,7 +16,9 @@ checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
      the simulated teacher of :mod:`~mindgap.teachers.preference` (biased: r_H + log T_H;
      true: r_H) or a host teacher (people through the study app);
    * fit q(w) q(φ) to all answers by the negative ELBO (line 7; Eqs. 3.2–3.5);
-   * relabel the whole buffer with the posterior-mean reward r_w (PEBBLE's relabelling);
+   * relabel the whole buffer with the posterior-mean reward r_w (PEBBLE's relabelling),
+     and with ``prefbias.absorbing`` the terminal transitions with the value of their
+     absorbing state on top (:func:`~mindgap.feedback.replay.terminal_bonus`);
 
 3. in between, SAC on the relabelled reward under the true dynamics (line 9).
 
@@ -37,7 +39,7 @@ import numpy as np
 from ..feedback.prefbias_queries import SAMPLERS, select_queries
 from ..feedback.replay import relabel
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
-from ..models.prefbias_nets import belief_noise_map, posterior_reward
+from ..models.prefbias_nets import belief_noise_map, posterior_absorbing, posterior_reward
 from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
@@ -64,6 +66,13 @@ class PrefBiasLoopConfig(Schedule):
     """State-entropy pre-training steps (as PEBBLE; 0 for none)."""
     reset_critic: bool = True
     """Re-initialise the critic after pre-training (as PEBBLE)."""
+
+    def as_dict(self) -> dict:
+        """The run record's config; ``prefbias.absorbing`` only when on, so run folders from before it still resume."""
+        d = super().as_dict()
+        if not self.prefbias.absorbing:
+            del d["prefbias"]["absorbing"]
+        return d
 
     def check(self) -> None:
         if self.method != "prefbias":
@@ -127,7 +136,7 @@ def _init(keys, world_params, cfg: PrefBiasLoopConfig) -> PrefBiasCarry:
             loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
             prefbias_init(k_model, 2, 2, pcfg, dyn),
             dyn,
-            prefs_init(cfg.queries, cfg.segment, 2, 2),
+            prefs_init(cfg.queries, cfg.segment, 2, 2, absorbing=pcfg.absorbing),
             k_run,
             jnp.zeros((), jnp.int32),
         )
@@ -158,6 +167,11 @@ def _select_one(c: PrefBiasCarry, cfg: PrefBiasLoopConfig):
     return c._replace(key=key, model=model, dynamics=dyn), seg_a, seg_b, k_t, k_r
 
 
+def _absorbing_fn(cfg: PrefBiasLoopConfig):
+    """The engine's ``absorbing_fn``: r_abs at the posterior mean, or None without absorbing states."""
+    return posterior_absorbing if cfg.prefbias.absorbing else None
+
+
 def _where(cond, a, b):
     return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
 
@@ -168,7 +182,13 @@ def _learn_one(c: PrefBiasCarry, seg_a, seg_b, labels, answered, k_r, cfg: PrefB
     answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
     prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
     model, info = fit(c.model, prefs, k_r, cfg.prefbias)
-    replay = relabel(c.loop.replay, posterior_reward, model.reward.mean)
+    replay = relabel(
+        c.loop.replay,
+        posterior_reward,
+        model.reward.mean,
+        absorbing_fn=_absorbing_fn(cfg),
+        gamma=cfg.sac.gamma,
+    )
     shown = jnp.minimum(cfg.per_round, left)
     c = c._replace(loop=c.loop._replace(replay=replay), model=model, prefs=prefs, queries=c.queries + shown)
     return c, info
@@ -208,6 +228,7 @@ def _chunk(carry: PrefBiasCarry, world_params, cfg: PrefBiasLoopConfig, phase: s
             phase=phase,
             reward_fn=posterior_reward if learned else None,
             knn=cfg.knn,
+            absorbing_fn=_absorbing_fn(cfg) if learned else None,
         )
     )(carry.loop, carry.model.reward.mean)
     return carry._replace(loop=loop)

@@ -6,7 +6,10 @@ The person is modelled as preferring segment τ₁ over τ₂ with Bradley–Ter
     p̂(τ₁ ≻ τ₂ | w, φ) = σ(S(τ₁) − S(τ₂)),    S(τ) = Σ_t [r_w(s_t, a_t) + log f_φ(s_{t+1} | s_t, a_t)],
 
 the log of ``p̂(τ) ∝ Π_t f_φ(s_{t+1}|s_t, a_t) · exp Σ_t r_w(s_t, a_t)`` over a segment's
-unmasked steps. (The start-state factor ρ(s₀) of Eq. 3.5 is dropped: segments start
+unmasked steps. With absorbing states (``absorbing``; off by default) the steps of a segment
+after a terminal transition count too, each as ``r_abs(s_T)``, the learned reward of the
+absorbing state entered at s_T (:mod:`~mindgap.models.prefbias_nets`); they add no
+log f_φ term, since nothing moves there (log-density 0 under any belief). (The start-state factor ρ(s₀) of Eq. 3.5 is dropped: segments start
 mid-episode, and the simulated person ignores it too.) The posteriors
 q(w) q(φ) are factorised Gaussians (:mod:`~mindgap.models.bayes`) fitted by minimising the
 negative ELBO of Eq. 3.3, per answered pair::
@@ -36,16 +39,18 @@ import jax.numpy as jnp
 import optax
 from jax.flatten_util import ravel_pytree
 
-from ..feedback.segments import Segments
+from ..feedback.segments import Segments, absorbed_steps, terminal_obs
 from ..models.bayes import Gaussian, init_gaussian, kl_divergence
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes
 from ..models.mlp import Params, init_mlp
 from ..models.prefbias_nets import (
+    absorbing_local,
+    absorbing_value,
     belief_log_prob,
     belief_log_prob_local,
     reward_local,
-    reward_sizes,
     reward_value,
+    reward_weights_init,
 )
 from ..models.reward_ensemble import PrefData
 
@@ -58,6 +63,9 @@ class PrefBiasConfig:
 
     reward_hidden: tuple[int, ...] = (64, 64)
     """Hidden widths of the reward network r_w."""
+    absorbing: bool = False
+    """Give r_w absorbing states (a learned r_abs per terminal state; Kostrikov et al. 2019). Off by default:
+    on nav2 the agent then hovered next to the goal instead of diving into the pit (README, "PrefBias experiments")."""
     dynamics: DynamicsConfig = DynamicsConfig()
     """Architecture (and training) of f_ψ; the belief f_φ shares its architecture and scale floor."""
     belief_prior: str = "dynamics"
@@ -111,13 +119,14 @@ class FitInfo(NamedTuple):
 def prefbias_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: PrefBiasConfig, dynamics: DynamicsModel):
     """Priors and posteriors before any preference (Alg. 2, line 1).
 
-    q(w) starts at the centre of p(w), a random initialisation; q(φ) at the centre of p(φ):
+    q(w) starts at the centre of p(w), a random initialisation (with ``cfg.absorbing`` also
+    an absorbing head of zeros: r_abs = 0 a priori); q(φ) at the centre of p(φ):
     f_ψ's parameters (``"dynamics"``) or a random initialisation (``"random"``). f_φ reads
     ``dynamics.norm`` in both cases. All posterior σ start at ``cfg.init_std``.
     """
     cfg.check()
     k_w, k_phi = jax.random.split(key)
-    w0 = init_mlp(k_w, reward_sizes(obs_dim, act_dim, cfg.reward_hidden))
+    w0 = reward_weights_init(k_w, obs_dim, act_dim, cfg.reward_hidden, cfg.absorbing)
     if cfg.belief_prior == "dynamics":
         phi0 = dynamics.params
     else:
@@ -143,6 +152,11 @@ def segment_scores(rewards: jax.Array, log_f: jax.Array, mask: jax.Array) -> jax
     return jnp.sum(jnp.where(mask, rewards + log_f, 0.0), axis=-1)
 
 
+def absorbed_scores(r_abs: jax.Array, seg) -> jax.Array:
+    """What a segment's absorbing steps add to S(τ): ``r_abs(s_T)`` times their count: [...]."""
+    return r_abs * absorbed_steps(seg).sum(-1)
+
+
 def bt_cross_entropy(logit: jax.Array, label: jax.Array) -> jax.Array:
     """−[y log σ(S₁ − S₂) + (1 − y) log σ(S₂ − S₁)] (Eq. 3.4 and the loss below it), elementwise."""
     return -(label * jax.nn.log_sigmoid(logit) + (1 - label) * jax.nn.log_sigmoid(-logit))
@@ -154,19 +168,20 @@ def _pair(seg_a: Segments, seg_b: Segments) -> Segments:
 
 
 def _logits_local(reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, keys, cfg: PrefBiasConfig):
-    """S(a) − S(b) of each pair for one local-reparameterisation draw of r_w and f_φ (keys [2]): [K]."""
+    """S(a) − S(b) of each pair for one local-reparameterisation draw of r_w, r_abs and f_φ (keys [3]): [K]."""
     seg = _pair(seg_a, seg_b)
-    k_r, k_f = keys[0], keys[1]
+    k_r, k_f, k_a = keys[0], keys[1], keys[2]
     r = reward_local(reward, seg.obs, seg.act, k_r)
     lf = belief_log_prob_local(belief, norm, seg.obs, seg.act, seg.next_obs, k_f, cfg.dynamics.min_std)
-    s = segment_scores(r, lf, seg.mask)
+    s = segment_scores(r, lf, seg.mask) + absorbed_scores(absorbing_local(reward, terminal_obs(seg), k_a), seg)
     return s[0] - s[1]
 
 
 def scores_fixed(w: Params, phi: Params, norm: Norm, seg: Segments, cfg: PrefBiasConfig) -> jax.Array:
     """S(τ) of each segment for fixed weights of r_w and f_φ (posterior means or one draw): [K]."""
     lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std)
-    return segment_scores(reward_value(w, seg.obs, seg.act), lf, seg.mask)
+    s = segment_scores(reward_value(w, seg.obs, seg.act), lf, seg.mask)
+    return s + absorbed_scores(absorbing_value(w, terminal_obs(seg)), seg)
 
 
 def preference_prob(w: Params, phi: Params, norm: Norm, seg_a: Segments, seg_b: Segments, cfg: PrefBiasConfig):
@@ -178,8 +193,8 @@ def preference_prob(w: Params, phi: Params, norm: Norm, seg_a: Segments, seg_b: 
 def expected_nll(reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, label, keys, cfg: PrefBiasConfig):
     """Monte Carlo estimate of E_q[CE] per pair (the likelihood term of Eq. 3.3 divided by N): scalar.
 
-    ``keys [M, 2]``: one pair of keys (reward, belief) per draw; split them with
-    ``jax.random.split(key, (cfg.mc_samples, 2))``.
+    ``keys [M, 3]``: one triple of keys (reward, belief, absorbing reward) per draw; split
+    them with ``jax.random.split(key, (cfg.mc_samples, 3))``.
     """
 
     def draw(k):
@@ -197,7 +212,7 @@ def negative_elbo(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: Pre
         logit = _logits_local(state.reward, state.belief, state.norm, data.seg_a, data.seg_b, k, cfg)
         return jnp.sum(jnp.where(seen, bt_cross_entropy(logit, data.label), 0.0)) / n
 
-    nll = jax.vmap(draw)(jax.random.split(key, (cfg.mc_samples, 2))).mean()
+    nll = jax.vmap(draw)(jax.random.split(key, (cfg.mc_samples, 3))).mean()
     kl = kl_divergence(state.reward, state.reward_prior, cfg.reward_prior_std) + kl_divergence(
         state.belief, state.belief_prior, cfg.belief_prior_std
     )
@@ -225,7 +240,7 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
     # cost far more compile time than their share of the work.
     k_idx, k_mc = jax.random.split(key)
     all_idx = jax.random.randint(k_idx, (2 * cfg.updates, cfg.batch_size), 0, n)
-    all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 2))
+    all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 3))
 
     def loss_fn(w, phi, idx, keys):
         reward, belief = unravel_w(w), unravel_phi(phi)

@@ -35,6 +35,13 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--prior", default="dynamics", help="centre of the belief prior: dynamics (f_ψ, default) or random")
     p.add_argument("--explore-steps", type=int, help="state-entropy pre-training steps (default 4000, as PEBBLE)")
+    p.add_argument(
+        "--absorbing",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="absorbing states for the learned reward (Kostrikov et al. 2019): segments keep the steps after a "
+        "goal or pit and r_w learns what each terminal state is worth (default: off)",
+    )
     p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
     p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
     p.add_argument(
@@ -66,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         sac=sac,
         sampler=args.sampler,
-        prefbias=dataclasses.replace(base.prefbias, belief_prior=args.prior),
+        prefbias=dataclasses.replace(base.prefbias, belief_prior=args.prior, absorbing=args.absorbing),
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )
     for name, flag in (("queries", "queries"), ("per_round", "per_round"), ("explore_steps", "explore_steps")):

@@ -97,13 +97,15 @@ def select_queries(
     Jittable with ``k, length, sampler, cfg, candidates, samples`` static.
 
     Returns:
-        (seg_a, seg_b), each [K, L, ·].
+        (seg_a, seg_b), each [K, L, ·]: :class:`~mindgap.feedback.segments.AbsorbingSegments`
+        when ``cfg.absorbing``, else plain segments.
     """
     if sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
     ka, kb, ks = jax.random.split(key, 3)
     m = k * (1 if sampler == "uniform" else candidates)
-    seg_a, seg_b = sample_segments(buf, ka, m, length), sample_segments(buf, kb, m, length)
+    seg_a = sample_segments(buf, ka, m, length, absorbing=cfg.absorbing)
+    seg_b = sample_segments(buf, kb, m, length, absorbing=cfg.absorbing)
     if sampler == "uniform":
         return seg_a, seg_b
     top = jax.lax.top_k(candidate_scores(state, dynamics, seg_a, seg_b, ks, sampler, cfg, samples), k)[1]

@@ -61,6 +61,16 @@ def absorbed_steps(seg) -> jax.Array:
     return jnp.zeros(jnp.shape(seg.mask), bool) if absorbed is None else absorbed
 
 
+def terminal_obs(seg) -> jax.Array:
+    """The state ``s_T [..., d]`` each segment's last real step ends in: the absorbing state its absorbed steps stay in.
+
+    Meaningful only for segments with absorbing steps (a segment without any simply gives
+    its last real step's next observation).
+    """
+    last = jnp.maximum(seg.mask.sum(-1) - 1, 0)  # [...]
+    return jnp.take_along_axis(seg.next_obs, last[..., None, None], axis=-2)[..., 0, :]
+
+
 def with_absorbing(seg, absorbing: bool):
     """``seg`` as :class:`AbsorbingSegments` (no absorbing steps added) or as plain :class:`Segments` (any dropped)."""
     if absorbing:

@@ -4,6 +4,15 @@
   ``B =`` :data:`REWARD_BOUND` — linear over the range a step's reward and log-density
   differences take, but never so large that one unexplored corner dominates the agent's
   returns.
+* **Absorbing states** (Kostrikov et al. 2019, as the engine's reward ensemble,
+  :mod:`~mindgap.models.reward_ensemble`): r_w also holds a reward ``r_abs(s_T)`` for the
+  absorbing state an episode enters at its terminal state s_T, a Bayesian linear head on
+  the ensemble's radial basis features of s_T (:func:`~mindgap.models.reward_ensemble.absorbing_features`)
+  bounded like the step reward. Without it a segment that ends in a pit early is a
+  *shorter* sum of step rewards and looks cheap to the learner whenever those are negative.
+  The weights are then :class:`RewardWeights`; without absorbing states they are the MLP's
+  parameters alone (the structure of run folders from before absorbing states), and every
+  function here takes either.
 * **Belief** f_φ: a Bayesian MLP of the architecture of the agent's dynamics model f_ψ
   (:mod:`~mindgap.models.gaussian_dynamics`): two heads, the mean and the standard
   deviation of a Gaussian on the next state's displacement, read through f_ψ's
@@ -19,13 +28,16 @@ weights from :func:`~mindgap.models.bayes.sample_params`).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
 from ..envs.terrain.dynamics import is_wall, move_model
-from .bayes import Gaussian, bnn_local
+from .bayes import Gaussian, bnn_local, stddev
 from .gaussian_dynamics import Norm, gaussian_head, log_density, normalise_input
-from .mlp import Params, mlp
+from .mlp import Params, init_mlp, mlp
+from .reward_ensemble import RBF_PER_AXIS, absorbing_features
 
 REWARD_BOUND = 10.0
 """Soft bound B of the learned reward per step."""
@@ -35,21 +47,64 @@ def reward_sizes(obs_dim: int, act_dim: int, hidden: tuple[int, ...]) -> tuple[i
     return (obs_dim + act_dim, *hidden, 1)
 
 
+class RewardWeights(NamedTuple):
+    """The weights of r_w with absorbing states: ``net`` the MLP's layers, ``absorb [M]`` the absorbing head."""
+
+    net: Params
+    absorb: jax.Array
+
+
+def reward_weights_init(key: jax.Array, obs_dim: int, act_dim: int, hidden: tuple[int, ...], absorbing: bool):
+    """A random MLP; with ``absorbing`` as :class:`RewardWeights` with a head of zeros on :data:`RBF_PER_AXIS`^d features.
+
+    The MLP is the same for the same key either way; r_abs starts at 0 everywhere.
+    """
+    net = init_mlp(key, reward_sizes(obs_dim, act_dim, hidden))
+    return RewardWeights(net, jnp.zeros(RBF_PER_AXIS**obs_dim)) if absorbing else net
+
+
+def _net(params) -> Params:
+    return params.net if isinstance(params, RewardWeights) else params
+
+
 def _bound(raw: jax.Array) -> jax.Array:
-    return REWARD_BOUND * jnp.tanh(raw[..., 0] / REWARD_BOUND)
+    return REWARD_BOUND * jnp.tanh(raw / REWARD_BOUND)
 
 
-def reward_value(params: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
-    """r_w(s, a) for fixed weights ``params``: [..., d], [..., a] → [...]."""
-    return _bound(mlp(params, jnp.concatenate([obs, act], -1)))
+def reward_value(params, obs: jax.Array, act: jax.Array) -> jax.Array:
+    """r_w(s, a) for fixed weights (:class:`RewardWeights` or the MLP's alone): [..., d], [..., a] → [...]."""
+    return _bound(mlp(_net(params), jnp.concatenate([obs, act], -1))[..., 0])
 
 
 def reward_local(post: Gaussian, obs: jax.Array, act: jax.Array, key: jax.Array) -> jax.Array:
     """A draw of r_w(s, a), w ~ q(w), by local reparameterisation (one draw per row): [...]."""
-    return _bound(bnn_local(post, jnp.concatenate([obs, act], -1), key))
+    net = Gaussian(_net(post.mean), _net(post.rho))
+    return _bound(bnn_local(net, jnp.concatenate([obs, act], -1), key)[..., 0])
 
 
-def posterior_reward(params: Params, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
+def _head_size(params) -> int:
+    return params.absorb.shape[-1] if isinstance(params, RewardWeights) else 0
+
+
+def absorbing_value(params, terminal_obs: jax.Array) -> jax.Array:
+    """r_abs(s_T) for fixed weights: [..., d] → [...]; zeros without an absorbing head."""
+    m = _head_size(params)
+    if m == 0:
+        return jnp.zeros(terminal_obs.shape[:-1])
+    return _bound(absorbing_features(terminal_obs, m) @ params.absorb)
+
+
+def absorbing_local(post: Gaussian, terminal_obs: jax.Array, key: jax.Array) -> jax.Array:
+    """A draw of r_abs(s_T), w ~ q(w), by local reparameterisation: ``φ·μ + √(φ²·σ²) ε``, one ε per row: [...]."""
+    m = _head_size(post.mean)
+    if m == 0:
+        return jnp.zeros(terminal_obs.shape[:-1])
+    phi = absorbing_features(terminal_obs, m)
+    mean, var = phi @ post.mean.absorb, jnp.square(phi) @ jnp.square(stddev(post).absorb)
+    return _bound(mean + jnp.sqrt(var) * jax.random.normal(key, mean.shape, mean.dtype))
+
+
+def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
     """The reward the agent optimises: r_w at the posterior mean ``params = q(w).mean``. [B, ·] → [B].
 
     Has the signature of the engine's ``reward_fn`` (:func:`~mindgap.feedback.replay.relabel`,
@@ -57,6 +112,11 @@ def posterior_reward(params: Params, obs: jax.Array, act: jax.Array, next_obs: j
     """
     del next_obs
     return reward_value(params, obs, act)
+
+
+def posterior_absorbing(params, terminal_obs: jax.Array) -> jax.Array:
+    """r_abs at the posterior mean: the engine's ``absorbing_fn`` (the state a terminal transition enters). [B, d] → [B]."""
+    return absorbing_value(params, terminal_obs)
 
 
 def belief_predict(params: Params, norm: Norm, obs: jax.Array, act: jax.Array, min_std: float):

@@ -39,7 +39,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from ..feedback.segments import Segments, absorbed_steps, with_absorbing
+from ..feedback.segments import Segments, absorbed_steps, terminal_obs, with_absorbing
 from .mlp import Params, init_stack, mlp
 
 
@@ -180,9 +180,7 @@ def segment_returns(params: Params, seg: Segments) -> jax.Array:
     r = member_rewards(params, seg.obs, seg.act)  # [E, K, L]
     ret = jnp.sum(jnp.where(seg.mask, r, 0.0), axis=-1)
     if isinstance(params, AbsorbingParams):  # Σ absorbed · r_abs(s_T), s_T where the last real step ended
-        last = jnp.maximum(seg.mask.sum(-1) - 1, 0)  # [K]
-        s_t = jnp.take_along_axis(seg.next_obs, last[:, None, None], axis=1)[:, 0]  # [K, d]
-        ret = ret + member_absorbing_rewards(params, s_t) * absorbed_steps(seg).sum(-1)
+        ret = ret + member_absorbing_rewards(params, terminal_obs(seg)) * absorbed_steps(seg).sum(-1)
     return ret
 
 
