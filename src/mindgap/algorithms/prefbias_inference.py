@@ -9,8 +9,9 @@ the log of ``p̂(τ) ∝ Π_t f_φ(s_{t+1}|s_t, a_t) · exp Σ_t r_w(s_t, a_t)``
 unmasked steps. With absorbing states (``absorbing``; off by default) the steps of a segment
 after a terminal transition count too, each as ``r_abs(s_T)``, the learned reward of the
 absorbing state entered at s_T (:mod:`~mindgap.models.prefbias_nets`); they add no
-log f_φ term, since nothing moves there (log-density 0 under any belief). (The start-state factor ρ(s₀) of Eq. 3.5 is dropped: segments start
-mid-episode, and the simulated person ignores it too.) The posteriors
+log f_φ term, since nothing moves there (log-density 0 under any belief). (The start-state
+factor ρ(s₀) of Eq. 3.5 is dropped: segments start mid-episode, and the simulated person
+ignores it too.) The posteriors
 q(w) q(φ) are factorised Gaussians (:mod:`~mindgap.models.bayes`) fitted by minimising the
 negative ELBO of Eq. 3.3, per answered pair::
 
@@ -65,7 +66,8 @@ class PrefBiasConfig:
     """Hidden widths of the reward network r_w."""
     absorbing: bool = False
     """Give r_w absorbing states (a learned r_abs per terminal state; Kostrikov et al. 2019). Off by default:
-    on nav2 the agent then hovered next to the goal instead of diving into the pit (README, "PrefBias experiments")."""
+    on nav2 the agents then avoided the pit but froze against walls, a lower return than without
+    (README, "PrefBias experiments")."""
     dynamics: DynamicsConfig = DynamicsConfig()
     """Architecture (and training) of f_ψ; the belief f_φ shares its architecture and scale floor."""
     belief_prior: str = "dynamics"
