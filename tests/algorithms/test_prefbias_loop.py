@@ -15,7 +15,7 @@ from mindgap.algorithms.prefbias import prefbias_config, train
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
 from mindgap.feedback.replay import terminal_bonus
-from mindgap.models.prefbias_nets import posterior_absorbing, posterior_reward
+from mindgap.models.prefbias_nets import absorbing_value, posterior_reward
 from mindgap.planning.terrain import rollouts
 
 # two routes to the goal, an icy upper one and a floor lower one; the person believes ice is slippery
@@ -119,7 +119,7 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, absorbi
     assert hasattr(carry.prefs.seg_a, "absorbed") == absorbing
     if absorbing:  # terminal transitions also carry the value of the absorbing state they enter
         assert np.asarray(carry.prefs.seg_a.absorbed).any()
-        r_abs = jax.vmap(posterior_absorbing)(carry.model.reward.mean, buf.next_obs)
+        r_abs = jax.vmap(absorbing_value)(carry.model.reward.mean, buf.next_obs)
         assert np.abs(np.asarray(r_abs)[np.asarray(buf.terminal)]).max() > 0  # the fit moved r_abs off 0
         expect = expect + jnp.where(buf.terminal, terminal_bonus(r_abs, cfg.sac.gamma), 0.0)
     after = np.asarray(buf.reward)

@@ -16,7 +16,6 @@ from mindgap.models.prefbias_nets import (
     absorbing_value,
     belief_noise_map,
     belief_predict,
-    posterior_absorbing,
     posterior_reward,
     reward_sizes,
     reward_value,
@@ -101,7 +100,6 @@ def test_absorbing_head_is_a_bounded_linear_function_of_terminal_features(key):
     raw = _np_features(s_t) @ np.asarray(weights.absorb, np.float64)
     expect = REWARD_BOUND * np.tanh(raw / REWARD_BOUND)
     np.testing.assert_allclose(absorbing_value(weights, s_t), expect, rtol=1e-4, atol=1e-5)
-    np.testing.assert_allclose(posterior_absorbing(weights, s_t), expect, rtol=1e-4, atol=1e-5)
     # the step reward reads the MLP alone, as with plain MLP weights
     obs, act = s_t, jnp.ones((5, 2))
     np.testing.assert_array_equal(reward_value(weights, obs, act), reward_value(weights.net, obs, act))

@@ -39,7 +39,7 @@ import numpy as np
 from ..feedback.prefbias_queries import SAMPLERS, select_queries
 from ..feedback.replay import relabel
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
-from ..models.prefbias_nets import belief_noise_map, posterior_absorbing, posterior_reward
+from ..models.prefbias_nets import absorbing_value, belief_noise_map, posterior_reward
 from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
@@ -169,7 +169,7 @@ def _select_one(c: PrefBiasCarry, cfg: PrefBiasLoopConfig):
 
 def _absorbing_fn(cfg: PrefBiasLoopConfig):
     """The engine's ``absorbing_fn``: r_abs at the posterior mean, or None without absorbing states."""
-    return posterior_absorbing if cfg.prefbias.absorbing else None
+    return absorbing_value if cfg.prefbias.absorbing else None
 
 
 def _where(cond, a, b):

@@ -87,7 +87,11 @@ def _head_size(params) -> int:
 
 
 def absorbing_value(params, terminal_obs: jax.Array) -> jax.Array:
-    """r_abs(s_T) for fixed weights: [..., d] → [...]; zeros without an absorbing head."""
+    """r_abs(s_T) for fixed weights: [..., d] → [...]; zeros without an absorbing head.
+
+    At the posterior mean it is the engine's ``absorbing_fn`` (:func:`~mindgap.feedback.replay.relabel`,
+    :func:`~mindgap.algorithms.sac_loop.run_chunk`), read at the state a terminal transition enters.
+    """
     m = _head_size(params)
     if m == 0:
         return jnp.zeros(terminal_obs.shape[:-1])
@@ -112,11 +116,6 @@ def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array
     """
     del next_obs
     return reward_value(params, obs, act)
-
-
-def posterior_absorbing(params, terminal_obs: jax.Array) -> jax.Array:
-    """r_abs at the posterior mean: the engine's ``absorbing_fn`` (the state a terminal transition enters). [B, d] → [B]."""
-    return absorbing_value(params, terminal_obs)
 
 
 def belief_predict(params: Params, norm: Norm, obs: jax.Array, act: jax.Array, min_std: float):
