@@ -91,6 +91,32 @@ def test_preference_likelihood_matches_hand_computation(key):
         np.testing.assert_allclose(float(bt_cross_entropy(jnp.asarray(s_a - s_b), y)), expect, rtol=1e-4)
 
 
+def test_stay_head_scores_a_stay_by_its_probability(key):
+    """With a stay head a step with s' = s adds r + log p_stay to S(τ), a move r + log(1 − p_stay) + log N."""
+    w, _, norm, seg_a, seg_b = _tiny_problem(key)
+    phi = init_mlp(jax.random.fold_in(key, 7), dynamics_sizes(2, 2, (6,), stay=True))
+    seg_a = seg_a._replace(next_obs=seg_a.next_obs.at[0, 1].set(seg_a.obs[0, 1]))  # its second step a stay
+    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), stay_head=True)
+
+    def np_score(seg):
+        obs, act, nxt = (np.asarray(x[0], np.float64) for x in (seg.obs, seg.act, seg.next_obs))
+        in_mean, in_std, out_mean, out_std = (np.asarray(x, np.float64) for x in norm)
+        x = np.concatenate([obs, act], -1)
+        r = REWARD_BOUND * np.tanh(_np_mlp(w, x)[:, 0] / REWARD_BOUND)
+        raw = _np_mlp(phi, (x - in_mean) / in_std)
+        mean, std = obs + out_mean + out_std * raw[:, :2], out_std * (0.02 + np.log1p(np.exp(raw[:, 2:4])))
+        p_stay = 1 / (1 + np.exp(-raw[:, 4]))
+        stay = np.all(nxt == obs, -1)
+        log_f = np.where(stay, np.log(p_stay), np.log1p(-p_stay) + stats.norm.logpdf(nxt, mean, std).sum(-1))
+        return float(np.sum((r + log_f)[np.asarray(seg.mask[0])]))
+
+    p = 1.0 / (1.0 + np.exp(-(np_score(seg_a) - np_score(seg_b))))
+    assert 1e-4 < p < 1 - 1e-4
+    np.testing.assert_allclose(float(preference_prob(w, phi, norm, seg_a, seg_b, cfg)[0]), p, rtol=1e-4)
+    state = prefbias_init(key, 2, 2, dataclasses.replace(cfg, belief_prior="random"), DynamicsModel(phi, norm))
+    assert state.belief.mean[-1][1].shape == (5,)  # a random prior of the same architecture
+
+
 def test_negative_elbo_is_cross_entropy_plus_kl_over_n(key):
     """Eq. 3.3 per pair with near-deterministic posteriors: CE of the mean networks + KL / N."""
     w, phi, norm, seg_a, seg_b = _tiny_problem(key)

@@ -98,13 +98,17 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
         train(icy, other, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
 
-@pytest.mark.parametrize("absorbing", [False, True])
-def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, absorbing, tmp_path):
+@pytest.mark.parametrize("option", [None, "absorbing", "stay_head"])
+def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, option, tmp_path):
+    absorbing = option == "absorbing"
     if absorbing:  # a world whose episodes end every few steps, so that queries hold absorbing steps
         (tmp_path / "pocket.toml").write_text(POCKET)
         icy = load_world(str(tmp_path / "pocket.toml"))
     fast = prefbias_config("fast")
-    cfg = prefbias_config("fast", prefbias=dataclasses.replace(fast.prefbias, absorbing=absorbing))
+    opts = {option: True} if option else {}
+    cfg = prefbias_config("fast", prefbias=dataclasses.replace(fast.prefbias, **opts))
+    record = cfg.as_dict()["prefbias"]
+    assert {k for k in ("absorbing", "stay_head") if k in record} == set(opts)  # recorded only when on
     carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.params, cfg)
     for phase in ("random", "explore"):
         carry = prefbias._chunk(carry, icy.params, cfg, phase)
@@ -128,6 +132,8 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, absorbi
     # the first round fitted f_ψ on the buffer and centred p(φ) on it; q(φ) started there
     psi = carry.dynamics.params[0][0]
     np.testing.assert_array_equal(np.asarray(carry.model.belief_prior[0][0]), np.asarray(psi))
+    outputs = carry.dynamics.params[-1][1].shape[-1]  # mean and scale per coordinate, and the stay logit
+    assert outputs == 4 + (option == "stay_head") == carry.model.belief.mean[-1][1].shape[-1]
     np.testing.assert_allclose(np.asarray(carry.model.norm.out_std), np.asarray(carry.dynamics.norm.out_std))
     assert float(jnp.abs(carry.dynamics.norm.out_std).min()) < 0.5  # the buffer's spread, not the placeholder's 1
 

@@ -8,13 +8,16 @@ from scipy import stats
 from mindgap.models.gaussian_dynamics import (
     DynamicsConfig,
     Norm,
+    dynamics_init,
     dynamics_log_prob,
     fit_norm,
     gaussian_head,
     log_density,
+    next_state_log_prob,
     predict,
     train_dynamics,
 )
+from mindgap.models.mlp import mlp
 
 
 def test_head_and_density_by_hand():
@@ -69,3 +72,59 @@ def test_early_stopping_keeps_the_best_epoch(key):
         jax.random.fold_in(key, 2), obs, act, nxt, valid, cfg, model
     )
     assert float(again.val_nll) <= float(info.val_nll) + 1e-5
+
+
+def test_stay_head_mixture_by_hand():
+    """With a fifth output the next state is p_stay · δ(s) + (1 − p_stay) · the Gaussian; without, the Gaussian."""
+    norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.array([0.5, 2.0]))
+    obs = jnp.array([[0.3, 0.4], [0.3, 0.4]])
+    moved = jnp.array([[0.9, -0.1], [0.3, 0.4]])  # a move, then a stay
+    raw4 = jnp.array([[1.0, -1.0, 0.0, 2.0]] * 2)
+    raw5 = jnp.concatenate([raw4, jnp.full((2, 1), 0.7)], -1)
+    gauss = log_density(*gaussian_head(raw4, norm, obs, 0.01), moved)
+    np.testing.assert_allclose(next_state_log_prob(raw4, norm, obs, moved, 0.01), gauss, rtol=1e-6)
+    # the stay logit does not leak into the scale head
+    np.testing.assert_allclose(gaussian_head(raw5, norm, obs, 0.01)[1], gaussian_head(raw4, norm, obs, 0.01)[1])
+    p_stay = 1 / (1 + np.exp(-0.7))
+    np.testing.assert_allclose(
+        next_state_log_prob(raw5, norm, obs, moved, 0.01),
+        [np.log1p(-p_stay) + float(gauss[0]), np.log(p_stay)],
+        rtol=1e-5,
+    )
+
+
+def test_stay_head_learns_the_stay_rate_and_keeps_the_noise_narrow(key):
+    """Stays at 40% where x ≥ 0: the head learns that rate; the Gaussian keeps the moves' scale there,
+    where a model without the head widens to cover the stays."""
+    obs, act, moved = _heteroscedastic(key, 4000)
+    stay = (obs[:, 0] >= 0) & (jax.random.uniform(jax.random.fold_in(key, 3), (4000,)) < 0.4)
+    nxt = jnp.where(stay[:, None], obs, moved)
+    valid = jnp.ones(4000, bool)
+    cfg = DynamicsConfig(hidden=(32, 32), max_epochs=30, patience=4, lr=3e-3)
+    train = jax.jit(train_dynamics, static_argnames="cfg")
+    norm = fit_norm(obs, act, nxt, valid)
+    probe, a = jnp.array([[-0.5, 0.0], [0.5, 0.0]]), jnp.array([[1.0, -1.0], [1.0, -1.0]])
+    stds = {}
+    for with_head in (False, True):
+        init = dynamics_init(jax.random.fold_in(key, 4), 2, 2, cfg, norm, stay=with_head)
+        model, _ = train(jax.random.fold_in(key, 5), obs, act, nxt, valid, cfg, init)
+        stds[with_head] = np.asarray(predict(model, probe, a, cfg.min_std)[1]).mean(-1)
+        if with_head:
+            logit = mlp(model.params, (jnp.concatenate([probe, a], -1) - norm.in_mean) / norm.in_std)[:, -1]
+            p = np.asarray(jax.nn.sigmoid(logit))
+            assert p[0] < 0.05 and 0.3 < p[1] < 0.5, p
+            lp = dynamics_log_prob(model, obs, act, nxt, cfg.min_std)
+            np.testing.assert_allclose(
+                lp[stay],
+                np.log(
+                    np.asarray(
+                        jax.nn.sigmoid(
+                            mlp(model.params, (jnp.concatenate([obs, act], -1) - norm.in_mean) / norm.in_std)[:, -1]
+                        )
+                    )
+                )[np.asarray(stay)],
+                rtol=1e-5,
+            )
+    assert 0.03 < stds[True][1] < 0.07, stds  # the moves' own noise
+    # a plain Gaussian widens to cover the stays (here 0.1-cell steps: by about half)
+    assert stds[False][1] > 1.3 * stds[True][1], stds

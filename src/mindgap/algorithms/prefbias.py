@@ -68,10 +68,12 @@ class PrefBiasLoopConfig(Schedule):
     """Re-initialise the critic after pre-training (as PEBBLE)."""
 
     def as_dict(self) -> dict:
-        """The run record's config; ``prefbias.absorbing`` only when on, so run folders from before it still resume."""
+        """The run record's config; ``prefbias.absorbing`` and ``prefbias.stay_head`` only when on, so
+        run folders from before them still resume."""
         d = super().as_dict()
-        if not self.prefbias.absorbing:
-            del d["prefbias"]["absorbing"]
+        for name in ("absorbing", "stay_head"):
+            if not getattr(self.prefbias, name):
+                del d["prefbias"][name]
         return d
 
     def check(self) -> None:
@@ -131,7 +133,7 @@ def _init(keys, world_params, cfg: PrefBiasLoopConfig) -> PrefBiasCarry:
     def one(k):
         k_loop, k_dyn, k_model, k_run = jax.random.split(k, 4)
         norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.ones(2))
-        dyn = dynamics_init(k_dyn, 2, 2, pcfg.dynamics, norm)
+        dyn = dynamics_init(k_dyn, 2, 2, pcfg.dynamics, norm, stay=pcfg.stay_head)
         return PrefBiasCarry(
             loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
             prefbias_init(k_model, 2, 2, pcfg, dyn),
@@ -157,7 +159,8 @@ def _select_one(c: PrefBiasCarry, cfg: PrefBiasLoopConfig):
     buf = c.loop.replay
     valid = jnp.arange(buf.capacity) < buf.size
     first = c.queries == 0
-    fresh = dynamics_init(k_psi0, 2, 2, pcfg.dynamics, fit_norm(buf.obs, buf.act, buf.next_obs, valid))
+    norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
+    fresh = dynamics_init(k_psi0, 2, 2, pcfg.dynamics, norm, stay=pcfg.stay_head)
     start = _where(first, fresh, c.dynamics)
     dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, pcfg.dynamics, init=start)
     model = _where(first, prefbias_init(k_init, 2, 2, pcfg, dyn), with_dynamics(c.model, dyn, pcfg))

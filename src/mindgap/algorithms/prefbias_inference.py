@@ -70,6 +70,11 @@ class PrefBiasConfig:
     (README, "PrefBias experiments")."""
     dynamics: DynamicsConfig = DynamicsConfig()
     """Architecture (and training) of f_ψ; the belief f_φ shares its architecture and scale floor."""
+    stay_head: bool = False
+    """Give f_ψ and f_φ a third head, the probability of not moving at all (s' = s: stuck or
+    bumped), so that such steps are a point mass rather than a far tail of the Gaussian
+    (:mod:`~mindgap.models.gaussian_dynamics`). Off by default (the architecture of run folders
+    from before it)."""
     belief_prior: str = "dynamics"
     """Centre of p(φ): 'dynamics' (f_ψ's parameters) or 'random' (a random initialisation)."""
     reward_prior_std: float = 1.0
@@ -132,7 +137,7 @@ def prefbias_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: PrefBiasConfi
     if cfg.belief_prior == "dynamics":
         phi0 = dynamics.params
     else:
-        phi0 = init_mlp(k_phi, dynamics_sizes(obs_dim, act_dim, cfg.dynamics.hidden))
+        phi0 = init_mlp(k_phi, dynamics_sizes(obs_dim, act_dim, cfg.dynamics.hidden, cfg.stay_head))
     reward, belief = init_gaussian(w0, cfg.init_std), init_gaussian(phi0, cfg.init_std)
     opt = optax.adam(cfg.lr)
     opt_w, opt_phi = opt.init(ravel_pytree(reward)[0]), opt.init(ravel_pytree(belief)[0])  # see fit

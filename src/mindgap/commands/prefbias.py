@@ -42,6 +42,13 @@ def add_parser(sub) -> None:
         help="absorbing states for the learned reward (Kostrikov et al. 2019): segments keep the steps after a "
         "goal or pit and r_w learns what each terminal state is worth (default: off)",
     )
+    p.add_argument(
+        "--stay-head",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="f_ψ and f_φ also predict the probability of not moving at all (stuck or bumped), a point mass "
+        "instead of a far tail of the Gaussian (default: off)",
+    )
     p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
     p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
     p.add_argument(
@@ -73,7 +80,9 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         sac=sac,
         sampler=args.sampler,
-        prefbias=dataclasses.replace(base.prefbias, belief_prior=args.prior, absorbing=args.absorbing),
+        prefbias=dataclasses.replace(
+            base.prefbias, belief_prior=args.prior, absorbing=args.absorbing, stay_head=args.stay_head
+        ),
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )
     for name, flag in (("queries", "queries"), ("per_round", "per_round"), ("explore_steps", "explore_steps")):

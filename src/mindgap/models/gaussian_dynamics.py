@@ -14,8 +14,17 @@ belief f_φ, so it can be the centre of f_φ's prior (§3.3.3.1, "Prior"). Train
 a validation split, keeps the parameters of the best validation epoch and stops after
 ``patience`` epochs without improvement, all inside one jittable ``lax.while_loop``.
 
+**Stay head** (optional, ``stay=True`` in :func:`dynamics_init`): one more output, the
+logit of the probability that the agent does not move at all (s' = s exactly: stuck, or
+bumped against a wall). The next state is then a mixture of a point mass at s and the
+Gaussian above, the family of the terrain worlds' own transitions (:mod:`~mindgap.envs.terrain.dynamics`),
+and :func:`next_state_log_prob` is the log of the point mass's probability for a stay and
+``log(1 − p_stay)`` plus the Gaussian's log density for a move. A plain Gaussian has to
+widen wherever stays are common to keep their density finite. Whether a model has the head
+is read from its output width, so every function here takes either.
+
 The belief network (:mod:`~mindgap.models.prefbias_nets`) reuses :class:`Norm`,
-:func:`gaussian_head` and :func:`log_density`, so f_ψ and f_φ read their outputs alike.
+:func:`gaussian_head` and :func:`next_state_log_prob`, so f_ψ and f_φ read their outputs alike.
 """
 
 from __future__ import annotations
@@ -75,9 +84,10 @@ class DynamicsInfo(NamedTuple):
     epochs: jax.Array
 
 
-def dynamics_sizes(obs_dim: int, act_dim: int, hidden: tuple[int, ...]) -> tuple[int, ...]:
-    """Layer widths of f_ψ and f_φ: (s, a) → (mean, raw scale) of the displacement."""
-    return (obs_dim + act_dim, *hidden, 2 * obs_dim)
+def dynamics_sizes(obs_dim: int, act_dim: int, hidden: tuple[int, ...], stay: bool = False) -> tuple[int, ...]:
+    """Layer widths of f_ψ and f_φ: (s, a) → (mean, raw scale) of the displacement, and with
+    ``stay`` the logit of a stay."""
+    return (obs_dim + act_dim, *hidden, 2 * obs_dim + int(stay))
 
 
 def fit_norm(obs: jax.Array, act: jax.Array, next_obs: jax.Array, valid: jax.Array) -> Norm:
@@ -100,10 +110,11 @@ def normalise_input(norm: Norm, obs: jax.Array, act: jax.Array) -> jax.Array:
 
 
 def gaussian_head(raw: jax.Array, norm: Norm, obs: jax.Array, min_std: float) -> tuple[jax.Array, jax.Array]:
-    """Network output ``raw [..., 2d]`` → mean and standard deviation of the next state, each [..., d]."""
+    """Network output ``raw [..., 2d (+1)]`` → mean and standard deviation of the next state (of a
+    move, with a stay head), each [..., d]."""
     d = obs.shape[-1]
     mean = obs + norm.out_mean + norm.out_std * raw[..., :d]
-    std = norm.out_std * (min_std + jax.nn.softplus(raw[..., d:]))
+    std = norm.out_std * (min_std + jax.nn.softplus(raw[..., d : 2 * d]))
     return mean, std
 
 
@@ -113,18 +124,44 @@ def log_density(mean: jax.Array, std: jax.Array, next_obs: jax.Array) -> jax.Arr
     return jnp.sum(-0.5 * jnp.square(z) - jnp.log(std) - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
 
 
+def has_stay_head(raw: jax.Array, obs: jax.Array) -> bool:
+    """Whether a network's output ``raw [..., 2d (+1)]`` has the stay logit (static: read from shapes)."""
+    return raw.shape[-1] == 2 * obs.shape[-1] + 1
+
+
+def with_stay(raw: jax.Array, obs: jax.Array, next_obs: jax.Array, log_move: jax.Array) -> jax.Array:
+    """The mixture's log-probability from the Gaussian's log density ``log_move [...]``: unchanged
+    without a stay head; with one, log p_stay where ``next_obs == obs`` (every coordinate) and
+    ``log(1 − p_stay) + log_move`` elsewhere."""
+    if not has_stay_head(raw, obs):
+        return log_move
+    logit = raw[..., -1]
+    stay = jnp.all(next_obs == obs, axis=-1)
+    return jnp.where(stay, jax.nn.log_sigmoid(logit), jax.nn.log_sigmoid(-logit) + log_move)
+
+
+def next_state_log_prob(raw: jax.Array, norm: Norm, obs: jax.Array, next_obs: jax.Array, min_std: float) -> jax.Array:
+    """log f(s' | s, a) from a network's output ``raw``: [..., ·] → [...]; the Gaussian's log
+    density of :func:`log_density`, through :func:`with_stay`."""
+    return with_stay(raw, obs, next_obs, log_density(*gaussian_head(raw, norm, obs, min_std), next_obs))
+
+
 def predict(model: DynamicsModel, obs: jax.Array, act: jax.Array, min_std: float) -> tuple[jax.Array, jax.Array]:
     """Mean and standard deviation of the next state under f_ψ: [..., d] each."""
     return gaussian_head(mlp(model.params, normalise_input(model.norm, obs, act)), model.norm, obs, min_std)
 
 
 def dynamics_log_prob(model: DynamicsModel, obs, act, next_obs, min_std: float) -> jax.Array:
-    """log f_ψ(s' | s, a): [..., d] → [...]."""
-    return log_density(*predict(model, obs, act, min_std), next_obs)
+    """log f_ψ(s' | s, a) (:func:`next_state_log_prob`): [..., d] → [...]."""
+    raw = mlp(model.params, normalise_input(model.norm, obs, act))
+    return next_state_log_prob(raw, model.norm, obs, next_obs, min_std)
 
 
-def dynamics_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: DynamicsConfig, norm: Norm) -> DynamicsModel:
-    return DynamicsModel(init_mlp(key, dynamics_sizes(obs_dim, act_dim, cfg.hidden)), norm)
+def dynamics_init(
+    key: jax.Array, obs_dim: int, act_dim: int, cfg: DynamicsConfig, norm: Norm, stay: bool = False
+) -> DynamicsModel:
+    """A fresh model; ``stay`` adds the stay head."""
+    return DynamicsModel(init_mlp(key, dynamics_sizes(obs_dim, act_dim, cfg.hidden, stay)), norm)
 
 
 def train_dynamics(
@@ -162,11 +199,12 @@ def train_dynamics(
     opt = optax.adam(cfg.lr)
 
     def nll(params, rows):
-        mean, std = gaussian_head(
-            mlp(params, normalise_input(norm, obs[rows], act[rows])), norm, obs[rows], cfg.min_std
-        )
-        # in normalised units, so that the loss does not depend on the size of the world
-        return -log_density(mean / norm.out_std, std / norm.out_std, next_obs[rows] / norm.out_std)
+        raw = mlp(params, normalise_input(norm, obs[rows], act[rows]))
+        mean, std = gaussian_head(raw, norm, obs[rows], cfg.min_std)
+        # in normalised units, so that the loss does not depend on the size of the world (a
+        # constant shift of the log density, which leaves the stay head's fit unchanged)
+        log_move = log_density(mean / norm.out_std, std / norm.out_std, next_obs[rows] / norm.out_std)
+        return -with_stay(raw, obs[rows], next_obs[rows], log_move)
 
     def val_loss(params):
         per = nll(params, jnp.arange(obs.shape[0]))

@@ -19,7 +19,10 @@
   normalisation. Because the architectures match, ψ can be the centre of the prior p(φ).
 
 A Gaussian cannot hold the point mass of a stuck or bumped step that the terrain worlds
-have; the scale floor (``min_std``) keeps the density of such steps finite.
+have; the scale floor (``min_std``) keeps the density of such steps finite. With
+``PrefBiasConfig.stay_head`` both f_ψ and f_φ have a third head, the probability of not
+moving at all (:func:`~mindgap.models.gaussian_dynamics.with_stay`), and such steps are
+scored by it instead.
 
 Each network is evaluated either with the local reparameterisation trick (a sample per
 transition, for the ELBO) or with fixed parameters (the posterior mean, or one draw of all
@@ -35,7 +38,7 @@ import jax.numpy as jnp
 
 from ..envs.terrain.dynamics import is_wall, move_model
 from .bayes import Gaussian, bnn_local, stddev
-from .gaussian_dynamics import Norm, gaussian_head, log_density, normalise_input
+from .gaussian_dynamics import Norm, gaussian_head, next_state_log_prob, normalise_input
 from .mlp import Params, init_mlp, mlp
 from .reward_ensemble import RBF_PER_AXIS, absorbing_features
 
@@ -124,14 +127,14 @@ def belief_predict(params: Params, norm: Norm, obs: jax.Array, act: jax.Array, m
 
 
 def belief_log_prob(params: Params, norm: Norm, obs, act, next_obs, min_std: float) -> jax.Array:
-    """log f_φ(s' | s, a) with fixed weights: [...]."""
-    return log_density(*belief_predict(params, norm, obs, act, min_std), next_obs)
+    """log f_φ(s' | s, a) with fixed weights (with a stay head, the mixture's): [...]."""
+    return next_state_log_prob(mlp(params, normalise_input(norm, obs, act)), norm, obs, next_obs, min_std)
 
 
 def belief_log_prob_local(post: Gaussian, norm: Norm, obs, act, next_obs, key: jax.Array, min_std: float):
     """A draw of log f_φ(s' | s, a), φ ~ q(φ), by local reparameterisation (one draw per row): [...]."""
     raw = bnn_local(post, normalise_input(norm, obs, act), key)
-    return log_density(*gaussian_head(raw, norm, obs, min_std), next_obs)
+    return next_state_log_prob(raw, norm, obs, next_obs, min_std)
 
 
 CROSS_ACTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
