@@ -14,6 +14,7 @@ from mindgap.models.gaussian_dynamics import (
     gaussian_head,
     log_density,
     next_state_log_prob,
+    normalise_input,
     predict,
     train_dynamics,
 )
@@ -110,21 +111,15 @@ def test_stay_head_learns_the_stay_rate_and_keeps_the_noise_narrow(key):
         model, _ = train(jax.random.fold_in(key, 5), obs, act, nxt, valid, cfg, init)
         stds[with_head] = np.asarray(predict(model, probe, a, cfg.min_std)[1]).mean(-1)
         if with_head:
-            logit = mlp(model.params, (jnp.concatenate([probe, a], -1) - norm.in_mean) / norm.in_std)[:, -1]
-            p = np.asarray(jax.nn.sigmoid(logit))
+
+            def p_stay(o, u):
+                return np.asarray(jax.nn.sigmoid(mlp(model.params, normalise_input(norm, o, u))[:, -1]))
+
+            p = p_stay(probe, a)
             assert p[0] < 0.05 and 0.3 < p[1] < 0.5, p
-            lp = dynamics_log_prob(model, obs, act, nxt, cfg.min_std)
-            np.testing.assert_allclose(
-                lp[stay],
-                np.log(
-                    np.asarray(
-                        jax.nn.sigmoid(
-                            mlp(model.params, (jnp.concatenate([obs, act], -1) - norm.in_mean) / norm.in_std)[:, -1]
-                        )
-                    )
-                )[np.asarray(stay)],
-                rtol=1e-5,
-            )
+            lp = np.asarray(dynamics_log_prob(model, obs, act, nxt, cfg.min_std))
+            stayed = np.asarray(stay)
+            np.testing.assert_allclose(lp[stayed], np.log(p_stay(obs, act))[stayed], rtol=1e-5)
     assert 0.03 < stds[True][1] < 0.07, stds  # the moves' own noise
     # a plain Gaussian widens to cover the stays (here 0.1-cell steps: by about half)
     assert stds[False][1] > 1.3 * stds[True][1], stds

@@ -38,7 +38,7 @@ import jax.numpy as jnp
 
 from ..envs.terrain.dynamics import is_wall, move_model
 from .bayes import Gaussian, bnn_local, stddev
-from .gaussian_dynamics import Norm, gaussian_head, next_state_log_prob, normalise_input
+from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, next_state_log_prob, normalise_input, predict
 from .mlp import Params, init_mlp, mlp
 from .reward_ensemble import RBF_PER_AXIS, absorbing_features
 
@@ -123,12 +123,12 @@ def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array
 
 def belief_predict(params: Params, norm: Norm, obs: jax.Array, act: jax.Array, min_std: float):
     """Mean and standard deviation of the next state under f_φ with fixed weights: ([..., d], [..., d])."""
-    return gaussian_head(mlp(params, normalise_input(norm, obs, act)), norm, obs, min_std)
+    return predict(DynamicsModel(params, norm), obs, act, min_std)
 
 
 def belief_log_prob(params: Params, norm: Norm, obs, act, next_obs, min_std: float) -> jax.Array:
     """log f_φ(s' | s, a) with fixed weights (with a stay head, the mixture's): [...]."""
-    return next_state_log_prob(mlp(params, normalise_input(norm, obs, act)), norm, obs, next_obs, min_std)
+    return dynamics_log_prob(DynamicsModel(params, norm), obs, act, next_obs, min_std)
 
 
 def belief_log_prob_local(post: Gaussian, norm: Norm, obs, act, next_obs, key: jax.Array, min_std: float):
