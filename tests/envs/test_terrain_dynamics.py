@@ -39,10 +39,20 @@ CASES = [
 ]
 
 
+def _params(walls: str):
+    table = dict(TABLE, walls=walls)
+    return make_params(parse_layout(LAYOUT), Dynamics.from_dict(table), Rewards(10.0, -10.0, -1.0, 0.0), horizon=50)
+
+
+@pytest.fixture(scope="module", params=["bump", "slide"])
+def params(request):
+    """The test world under each wall rule: every consistency test runs for both."""
+    return _params(request.param)
+
+
 @pytest.fixture(scope="module")
-def params():
-    layout = parse_layout(LAYOUT)
-    return make_params(layout, Dynamics.from_dict(TABLE), Rewards(10.0, -10.0, -1.0, 0.0), horizon=50)
+def bump_params():
+    return _params("bump")
 
 
 def _grid(pos, k):
@@ -68,7 +78,9 @@ def test_density_integrates_to_one(params, name, pos, action):
 def test_density_matches_subcell_masses(params, name, pos, action):
     """Integrating exp(log_prob) over each sub-cell gives the exact rectangle mass."""
     pos, action = jnp.asarray(pos, jnp.float32), jnp.asarray(action, jnp.float32)
-    n, k = 4, 40  # 4×4 sub-cells per cell, 10×10 quadrature points per sub-cell
+    # 4×4 sub-cells per cell, 40×40 quadrature points per sub-cell (the slide rule's density is
+    # steep at a wall's face when the mean lies inside the wall)
+    n, k = 4, 160
     stay, probs = subcell_probs(params, pos, action, n)
     pts, area = _grid(np.asarray(pos), k)
     dens = np.exp(np.asarray(jax.jit(jax.vmap(lambda q: log_prob_pos(params, pos, action, q)))(pts)))
@@ -110,9 +122,9 @@ def test_walls_refuse_and_diagonal_gaps_are_closed(params):
     assert not landing_allowed(params, pos, jnp.asarray([7.5, 2.5]))  # beyond the 3×3 block
 
 
-def test_log_prob_is_finite_far_in_the_tails(params):
+def test_log_prob_is_finite_far_in_the_tails(bump_params):
     """A precise step far from walls: the bump mass underflows float32 but its log does not."""
-    precise = params.with_dynamics(Dynamics.from_dict({"floor": {"noise": 0.01}, "pit_noise": 0.0}))
+    precise = bump_params.with_dynamics(Dynamics.from_dict({"floor": {"noise": 0.01}, "pit_noise": 0.0}))
     pos, a = jnp.asarray([1.5, 2.5]), jnp.asarray([0.0, 0.0])
     lp_stay = log_prob_pos(precise, pos, a, pos)
     assert np.isfinite(float(lp_stay)) and float(lp_stay) < -1000
@@ -120,3 +132,49 @@ def test_log_prob_is_finite_far_in_the_tails(params):
     assert np.isfinite(far) and far < -800
     assert float(log_prob_pos(precise, pos, a, jnp.asarray([0.5, 2.5]))) == -np.inf  # inside the border wall
     assert float(log_prob_pos(precise, pos, a, pos + 0.01)) > float(log_prob_pos(precise, pos, a, pos + 0.02))
+
+
+def test_slide_keeps_the_motion_along_a_wall():
+    """The freeze the bump rule has and the slide rule removes: a precise diagonal push into a
+    wall (mean 0.3 cells inside it, 6σ) stays put under ``bump`` and, under ``slide``, moves the
+    full step along the wall and ends within a few σ²/d of its face."""
+    table = {"floor": {"noise": 0.05}, "pit_noise": 0.0}
+    pos = jnp.asarray([3.5, 4.8], jnp.float32)  # floor, row 4, just above the border wall
+    a = jnp.asarray([-1.0, 1.0], jnp.float32)  # down-left, into the wall
+    keys = jax.random.split(jax.random.key(3), 2000)
+    for walls in ("bump", "slide"):
+        world = _params("bump").with_dynamics(Dynamics.from_dict(dict(table, walls=walls)))
+        nxt = np.asarray(jax.vmap(lambda k: sample_next(k, world, pos, a))(keys))
+        moved = ~np.all(nxt == np.asarray(pos), axis=1)
+        lp_stay = float(log_prob_pos(world, pos, a, pos))
+        if walls == "bump":
+            assert moved.mean() < 0.01 and lp_stay > -0.01  # frozen: almost surely a bump
+        else:
+            assert moved.all() and lp_stay == -np.inf
+            assert np.abs(nxt[:, 0] - (3.5 - 0.5)).max() < 0.25  # the x motion is kept
+            gap = 5.0 - nxt[:, 1]  # distance from the wall's face: about Exp(mean σ²/d = 0.008)
+            assert np.all(gap > 0) and gap.max() < 0.1 and gap.mean() < 0.02
+            dens = np.asarray(jax.vmap(lambda q: log_prob_pos(world, pos, a, q))(jnp.asarray(nxt)))
+            assert np.all(np.isfinite(dens))  # every draw is a point the density gives mass to
+
+
+def test_wall_rule_is_read_checked_and_recorded():
+    assert float(Dynamics.from_dict({}).slide) == 0.0
+    slide = Dynamics.from_dict({"walls": "slide"})
+    assert float(slide.slide) == 1.0 and slide.as_dict()["walls"] == "slide"
+    assert "walls" not in Dynamics.from_dict({"walls": "bump"}).as_dict()  # old records unchanged
+    assert float(Dynamics.from_dict({"ice": {"noise": 0.3}}, base=slide).slide) == 1.0  # a belief inherits it
+    with pytest.raises(ValueError, match="walls must be one of bump, slide"):
+        Dynamics.from_dict({"walls": "stick"})
+
+
+@pytest.mark.parametrize("a,b", [(-28.0, -8.0), (8.0, 28.0), (5.0, 5.5), (-1.0, 0.5), (0.0, 1.0)])
+def test_truncated_normal_is_exact_in_the_tails(a, b):
+    """The slide rule's redraw: a Kolmogorov–Smirnov test against SciPy's truncated normal,
+    including intervals far beyond 5σ where float32 inversion of the CDF fails."""
+    from mindgap.envs.terrain.dynamics import _truncated_normal
+
+    keys = jax.random.split(jax.random.key(5), 5000)
+    x = np.asarray(jax.vmap(lambda k: _truncated_normal(k, jnp.float32(a), jnp.float32(b)))(keys))
+    assert np.all((x >= a) & (x <= b))
+    assert stats.kstest(x, stats.truncnorm(a, b).cdf).pvalue > 1e-3

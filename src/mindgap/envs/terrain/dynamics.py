@@ -7,14 +7,21 @@ One step from position ``s`` (cell ``(r, c)``) with action ``a ∈ [−1, 1]²``
    ``σ(s) = noise[terrain(s)] + pit_noise · exp(−d_pit(s) / pit_scale)``.
 3. The proposal is taken if it lands in the 3×3 block of cells around ``(r, c)``, in a cell
    that is not a wall, and — for a diagonal neighbour — not through a corner closed by two
-   walls. Otherwise the agent bumps and stays where it was.
+   walls. Otherwise, by the table's wall rule (``Dynamics.slide``):
 
-The next position therefore has a mixed distribution: a point mass at ``s`` (stuck or
-bumped) and a Gaussian density restricted to the allowed cells. :func:`log_prob_pos`
-returns the log of that point mass when ``s' = s`` and the log density elsewhere; both
-are exact, because every region involved is an axis-aligned rectangle and the noise is
-isotropic, so its mass is a product of normal CDF differences (computed in log space so
-that tails far below float32's range stay finite).
+   * ``walls = "bump"`` (default): the agent bumps and stays where it was.
+   * ``walls = "slide"``: the proposal is drawn again from the Gaussian *truncated to the
+     allowed cells*. A push into a wall then ends at the wall's face and keeps its motion
+     along it (the truncated Gaussian's mass sits within about σ²/d of the face when its
+     mean is d inside the wall), so a diagonal push into a wall no longer freezes the agent.
+
+The next position therefore has a mixed distribution: a point mass at ``s`` (stuck, or
+bumped under the bump rule) and a Gaussian density restricted to the allowed cells —
+renormalised by the allowed mass under the slide rule. :func:`log_prob_pos` returns the
+log of that point mass when ``s' = s`` and the log density elsewhere; both are exact,
+because every region involved is an axis-aligned rectangle and the noise is isotropic, so
+its mass is a product of normal CDF differences (computed in log space so that tails far
+below float32's range stay finite).
 
 Written by hand: no distribution library has this wall-and-bump mixture.
 """
@@ -93,11 +100,64 @@ def landing_allowed(params: TerrainParams, pos: jax.Array, target: jax.Array) ->
 
 def sample_next(key: jax.Array, params: TerrainParams, pos: jax.Array, action: jax.Array) -> jax.Array:
     """Draw the next position (before any termination logic)."""
-    k_stuck, k_noise = jax.random.split(key)
+    k_stuck, k_noise = jax.random.split(key)  # as before the slide rule: bump worlds draw the same
     mean, sigma, stuck = move_model(params, pos, action)
     proposal = mean + sigma * jax.random.normal(k_noise, (2,), pos.dtype)
-    move = (jax.random.uniform(k_stuck) >= stuck) & landing_allowed(params, pos, proposal)
+    taken = landing_allowed(params, pos, proposal)
+    # a real branch where the world is not batched, so bump worlds never pay for the redraw
+    redraw = jax.lax.cond(
+        _slides(params),
+        lambda: _sample_allowed(jax.random.fold_in(k_noise, 1), params, pos, mean, sigma),
+        lambda: proposal,
+    )
+    proposal = jnp.where(taken, proposal, redraw)
+    move = (jax.random.uniform(k_stuck) >= stuck) & (taken | _slides(params))
     return jnp.where(move, proposal, pos)
+
+
+def _sample_allowed(key: jax.Array, params: TerrainParams, pos: jax.Array, mean: jax.Array, sigma: jax.Array):
+    """A draw of the proposal truncated to the allowed cells: a cell by its mass, then each
+    axis from the normal truncated to that cell (the slide rule's redraw)."""
+    k_cell, k_x, k_y = jax.random.split(key, 3)
+    log_cell = jnp.where(allowed_offsets(params, pos), log_cell_masses(pos, mean, sigma), -jnp.inf)
+    off = OFFSETS[jax.random.categorical(k_cell, log_cell)]
+    lo = cell_of(pos)[::-1].astype(pos.dtype) + off[::-1].astype(pos.dtype)  # (x, y) corner of that cell
+    z = jnp.stack(
+        [
+            _truncated_normal(k, (lo[i] - mean[i]) / sigma, (lo[i] + 1 - mean[i]) / sigma)
+            for i, k in enumerate((k_x, k_y))
+        ]
+    )
+    # keep the draw inside its cell where float32 rounding would put it on the far edge
+    return jnp.clip(mean + sigma * z, lo, jnp.nextafter(lo + 1, lo))
+
+
+def _truncated_normal(key: jax.Array, a: jax.Array, b: jax.Array) -> jax.Array:
+    """A standard normal draw truncated to ``[a, b]``, exact far into the tails.
+
+    ``jax.random.truncated_normal`` inverts the CDF in linear space and, in float32, returns
+    the wrong edge once both bounds lie beyond about 5σ on the same side — which is where
+    the slide rule needs it (a mean inside a wall, far from the face). Here an interval on
+    one side of 0 is mirrored to the right and the log survival function
+    ``log S(x) = log Φ(−x)`` is inverted by Newton's method from ``x = a``; an interval
+    around 0 has no such tail and goes to JAX's sampler.
+    """
+    k_u, k_mid = jax.random.split(key)
+    flip = a + b < 0
+    lo, hi = jnp.where(flip, -b, a), jnp.where(flip, -a, b)
+    lo_pos = jnp.maximum(lo, 0.0)
+    log_sa, log_sb = log_ndtr(-lo_pos), log_ndtr(-jnp.maximum(hi, lo_pos))
+    u = jax.random.uniform(k_u, (), lo.dtype)
+    target = log_sa + jnp.log1p(-u * -jnp.expm1(log_sb - log_sa))  # log S(x) at the draw
+
+    def newton(_, x):
+        g = log_ndtr(-x)
+        log_pdf = -0.5 * x * x - 0.5 * jnp.log(2 * jnp.pi)
+        return jnp.clip(x + (g - target) * jnp.exp(g - log_pdf), lo_pos, hi)
+
+    tail = jax.lax.fori_loop(0, 40, newton, lo_pos)
+    mid = jax.random.truncated_normal(k_mid, a, b, (), a.dtype)
+    return jnp.where(lo >= 0, jnp.where(flip, -tail, tail), mid)
 
 
 def _log1mexp(x: jax.Array) -> jax.Array:
@@ -114,19 +174,37 @@ def log_normal_mass(lo: jax.Array, hi: jax.Array) -> jax.Array:
     return lb + _log1mexp(log_ndtr(a) - lb)
 
 
+def log_cell_masses(pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Array:
+    """[9] log of the proposal's mass in each cell of the 3×3 block around ``pos`` (order of :data:`OFFSETS`)."""
+    corner = cell_of(pos)[::-1].astype(pos.dtype)  # (x, y) of the current cell's corner
+    cell_x = corner[0] + OFFSETS[:, 1]
+    cell_y = corner[1] + OFFSETS[:, 0]
+    return log_normal_mass((cell_x - mean[0]) / sigma, (cell_x + 1 - mean[0]) / sigma) + log_normal_mass(
+        (cell_y - mean[1]) / sigma, (cell_y + 1 - mean[1]) / sigma
+    )
+
+
+def log_allowed_mass(params: TerrainParams, pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Array:
+    """log P(the proposal is taken) = log of its mass in the allowed cells (rule 3).
+
+    Never −inf in practice: the current cell is always allowed, and in log space its mass
+    stays finite however far the mean lies from it.
+    """
+    return logsumexp(jnp.where(allowed_offsets(params, pos), log_cell_masses(pos, mean, sigma), -jnp.inf))
+
+
 def log_bump_mass(params: TerrainParams, pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Array:
     """log P(the proposal is refused) = log P(outside the 3×3 block or in a refused cell)."""
     corner = cell_of(pos)[::-1].astype(pos.dtype)  # (x, y) of the current cell's corner
     lo, hi = (corner - 1.0 - mean) / sigma, (corner + 2.0 - mean) / sigma
     log_t = jnp.logaddexp(log_ndtr(lo), log_ndtr(-hi))  # [2] per axis: outside the block
     log_out = jnp.logaddexp(log_t[0], log_t[1] + _log1mexp(log_t[0]))  # tx + ty (1 − tx)
-    cell_x = corner[0] + OFFSETS[:, 1]
-    cell_y = corner[1] + OFFSETS[:, 0]
-    log_cell = log_normal_mass((cell_x - mean[0]) / sigma, (cell_x + 1 - mean[0]) / sigma) + log_normal_mass(
-        (cell_y - mean[1]) / sigma, (cell_y + 1 - mean[1]) / sigma
-    )
-    refused = jnp.where(allowed_offsets(params, pos), -jnp.inf, log_cell)
+    refused = jnp.where(allowed_offsets(params, pos), -jnp.inf, log_cell_masses(pos, mean, sigma))
     return logsumexp(jnp.concatenate([log_out[None], refused]))
+
+
+def _slides(params: TerrainParams) -> jax.Array:
+    return params.dynamics.slide > 0.5
 
 
 def log_prob_pos(params: TerrainParams, pos: jax.Array, action: jax.Array, next_pos: jax.Array) -> jax.Array:
@@ -138,9 +216,13 @@ def log_prob_pos(params: TerrainParams, pos: jax.Array, action: jax.Array, next_
     """
     mean, sigma, stuck = move_model(params, pos, action)
     log_go = jnp.log1p(-stuck)
-    log_stay = jnp.logaddexp(jnp.log(stuck), log_go + log_bump_mass(params, pos, mean, sigma))
+    slide = _slides(params)
+    log_bumped = jnp.logaddexp(jnp.log(stuck), log_go + log_bump_mass(params, pos, mean, sigma))
+    log_stay = jnp.where(slide, jnp.log(stuck), log_bumped)
     z = (next_pos - mean) / sigma
     log_density = log_go - jnp.log(2 * jnp.pi * sigma**2) - 0.5 * jnp.sum(z**2)
+    log_z = jax.lax.cond(slide, lambda: log_allowed_mass(params, pos, mean, sigma), lambda: jnp.zeros((), mean.dtype))
+    log_density = log_density - log_z
     moved = jnp.where(landing_allowed(params, pos, next_pos), log_density, -jnp.inf)
     return jnp.where(jnp.all(next_pos == pos), log_stay, moved)
 
@@ -158,8 +240,16 @@ def subcell_probs(params: TerrainParams, pos: jax.Array, action: jax.Array, n: i
     mean, sigma, stuck = move_model(params, pos, action)
     corner = cell_of(pos)[::-1].astype(pos.dtype)
     edges = jnp.arange(3 * n + 1, dtype=pos.dtype) / n - 1.0
+    allowed = jnp.repeat(jnp.repeat(allowed_offsets(params, pos).reshape(3, 3), n, 0), n, 1)
+    # bump rule: the plain rectangle masses, the refused rest joins the stay mass
     px = jnp.diff(ndtr((corner[0] + edges - mean[0]) / sigma))
     py = jnp.diff(ndtr((corner[1] + edges - mean[1]) / sigma))
-    allowed = jnp.repeat(jnp.repeat(allowed_offsets(params, pos).reshape(3, 3), n, 0), n, 1)
-    probs = (1 - stuck) * jnp.where(allowed, py[:, None] * px[None, :], 0.0)
+    bump = jnp.where(allowed, py[:, None] * px[None, :], 0.0)
+    # slide rule: the same masses renormalised over the allowed sub-cells, in log space
+    # (the mean may sit so deep in a wall that every allowed mass underflows float32)
+    zx, zy = (corner[0] + edges - mean[0]) / sigma, (corner[1] + edges - mean[1]) / sigma
+    log_px, log_py = log_normal_mass(zx[:-1], zx[1:]), log_normal_mass(zy[:-1], zy[1:])
+    log_sub = jnp.where(allowed, log_py[:, None] + log_px[None, :], -jnp.inf)
+    slid = jnp.exp(log_sub - logsumexp(log_sub))
+    probs = (1 - stuck) * jnp.where(_slides(params), slid, bump)
     return jnp.clip(1.0 - probs.sum(), 0.0, 1.0), probs

@@ -22,6 +22,7 @@ A world file::
     sand = { speed = 0.5, noise = 0.05, stuck = 0.5 }
     pit_noise = 0.0
     pit_scale = 0.5
+    walls = "bump"                # or "slide": a push into a wall ends at its face (dynamics.py)
 
     [beliefs.human]               # a person's table: entries not given are the true ones
     ice = { speed = 0.3, noise = 0.3 }

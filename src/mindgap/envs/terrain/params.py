@@ -15,6 +15,7 @@ import numpy as np
 from .layout import PIT, TERRAINS, Layout, geodesic_distance
 
 FAR = 1e6  # stands in for "no pit" and "unreachable" so that no inf − inf reaches a gradient
+WALL_RULES = ("bump", "slide")
 
 
 class Dynamics(NamedTuple):
@@ -30,6 +31,10 @@ class Dynamics(NamedTuple):
         pit_noise: extra noise ``pit_noise · exp(−d / pit_scale)`` at distance ``d`` (cells)
             from the nearest pit; 0 switches it off.
         pit_scale: length scale of that extra noise (cells, > 0).
+        slide: 1 if a move that would end in a wall ends at the wall's face instead
+            (``walls = "slide"``: the Gaussian truncated to the open cells), 0 if it bumps
+            and stays put (``walls = "bump"``, the default). See
+            :mod:`~mindgap.envs.terrain.dynamics`.
     """
 
     speed: jax.Array
@@ -37,20 +42,21 @@ class Dynamics(NamedTuple):
     stuck: jax.Array
     pit_noise: jax.Array
     pit_scale: jax.Array
+    slide: jax.Array = np.float64(0.0)
 
     @classmethod
     def from_dict(cls, table: dict, base: Dynamics | None = None) -> Dynamics:
-        """Build a table from ``{terrain: {speed, noise, stuck}, pit_noise, pit_scale}``.
+        """Build a table from ``{terrain: {speed, noise, stuck}, pit_noise, pit_scale, walls}``.
 
         Entries missing from ``table`` are taken from ``base`` (a belief usually changes a
         few numbers of the true table); without a base every terrain defaults to
-        ``speed 1, noise 0.05, stuck 0`` and the pit term to off.
+        ``speed 1, noise 0.05, stuck 0``, the pit term to off and ``walls`` to ``"bump"``.
         """
         if base is None:
             n = len(TERRAINS)
-            base = cls(np.ones(n), np.full(n, 0.05), np.zeros(n), np.float64(0.0), np.float64(0.5))
+            base = cls(np.ones(n), np.full(n, 0.05), np.zeros(n), np.float64(0.0), np.float64(0.5), np.float64(0.0))
         speed, noise, stuck = (np.array(x, dtype=np.float64) for x in (base.speed, base.noise, base.stuck))
-        known = set(TERRAINS) | {"pit_noise", "pit_scale"}
+        known = set(TERRAINS) | {"pit_noise", "pit_scale", "walls"}
         for name, value in table.items():
             if name not in known:
                 raise ValueError(f"unknown dynamics entry {name!r}: expected one of {', '.join(sorted(known))}")
@@ -66,7 +72,12 @@ class Dynamics(NamedTuple):
                     raise ValueError(f"dynamics entry {name!r}: unknown field(s) {', '.join(sorted(extra))}")
         pit_noise = float(table.get("pit_noise", base.pit_noise))
         pit_scale = float(table.get("pit_scale", base.pit_scale))
-        dyn = cls(speed, noise, stuck, np.float64(pit_noise), np.float64(pit_scale))
+        slide = float(base.slide)
+        if "walls" in table:
+            if table["walls"] not in WALL_RULES:
+                raise ValueError(f"walls must be one of {', '.join(WALL_RULES)}, got {table['walls']!r}")
+            slide = float(table["walls"] == "slide")
+        dyn = cls(speed, noise, stuck, np.float64(pit_noise), np.float64(pit_scale), np.float64(slide))
         dyn.check()
         return dyn
 
@@ -89,6 +100,8 @@ class Dynamics(NamedTuple):
             for i, name in enumerate(TERRAINS)
         }
         out.update(pit_noise=float(self.pit_noise), pit_scale=float(self.pit_scale))
+        if float(self.slide):  # only when on, so records of bump worlds stay as they were
+            out["walls"] = "slide"
         return out
 
 
