@@ -119,8 +119,7 @@ def _sample_allowed(key: jax.Array, params: TerrainParams, pos: jax.Array, mean:
     """A draw of the proposal truncated to the allowed cells: a cell by its mass, then each
     axis from the normal truncated to that cell (the slide rule's redraw)."""
     k_cell, k_x, k_y = jax.random.split(key, 3)
-    log_cell = jnp.where(allowed_offsets(params, pos), log_cell_masses(pos, mean, sigma), -jnp.inf)
-    off = OFFSETS[jax.random.categorical(k_cell, log_cell)]
+    off = OFFSETS[jax.random.categorical(k_cell, _log_allowed_cells(params, pos, mean, sigma))]
     lo = cell_of(pos)[::-1].astype(pos.dtype) + off[::-1].astype(pos.dtype)  # (x, y) corner of that cell
     z = jnp.stack(
         [
@@ -184,13 +183,18 @@ def log_cell_masses(pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Ar
     )
 
 
+def _log_allowed_cells(params: TerrainParams, pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Array:
+    """[9] :func:`log_cell_masses`, −inf in the refused cells."""
+    return jnp.where(allowed_offsets(params, pos), log_cell_masses(pos, mean, sigma), -jnp.inf)
+
+
 def log_allowed_mass(params: TerrainParams, pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Array:
     """log P(the proposal is taken) = log of its mass in the allowed cells (rule 3).
 
     Never −inf in practice: the current cell is always allowed, and in log space its mass
     stays finite however far the mean lies from it.
     """
-    return logsumexp(jnp.where(allowed_offsets(params, pos), log_cell_masses(pos, mean, sigma), -jnp.inf))
+    return logsumexp(_log_allowed_cells(params, pos, mean, sigma))
 
 
 def log_bump_mass(params: TerrainParams, pos: jax.Array, mean: jax.Array, sigma: jax.Array) -> jax.Array:
@@ -241,13 +245,12 @@ def subcell_probs(params: TerrainParams, pos: jax.Array, action: jax.Array, n: i
     corner = cell_of(pos)[::-1].astype(pos.dtype)
     edges = jnp.arange(3 * n + 1, dtype=pos.dtype) / n - 1.0
     allowed = jnp.repeat(jnp.repeat(allowed_offsets(params, pos).reshape(3, 3), n, 0), n, 1)
+    zx, zy = (corner[0] + edges - mean[0]) / sigma, (corner[1] + edges - mean[1]) / sigma
     # bump rule: the plain rectangle masses, the refused rest joins the stay mass
-    px = jnp.diff(ndtr((corner[0] + edges - mean[0]) / sigma))
-    py = jnp.diff(ndtr((corner[1] + edges - mean[1]) / sigma))
+    px, py = jnp.diff(ndtr(zx)), jnp.diff(ndtr(zy))
     bump = jnp.where(allowed, py[:, None] * px[None, :], 0.0)
     # slide rule: the same masses renormalised over the allowed sub-cells, in log space
     # (the mean may sit so deep in a wall that every allowed mass underflows float32)
-    zx, zy = (corner[0] + edges - mean[0]) / sigma, (corner[1] + edges - mean[1]) / sigma
     log_px, log_py = log_normal_mass(zx[:-1], zx[1:]), log_normal_mass(zy[:-1], zy[1:])
     log_sub = jnp.where(allowed, log_py[:, None] + log_px[None, :], -jnp.inf)
     slid = jnp.exp(log_sub - logsumexp(log_sub))
