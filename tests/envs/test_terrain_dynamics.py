@@ -168,6 +168,30 @@ def test_wall_rule_is_read_checked_and_recorded():
         Dynamics.from_dict({"walls": "stick"})
 
 
+def test_bump_worlds_keep_the_fingerprint_they_had_before_the_slide_rule():
+    """Run folders and the expected-policy cache are keyed by a hash of the world's arrays: the
+    ``slide`` flag is left out of it when 0, so bump worlds hash as before the rule existed
+    (the hash nav2's run folders recorded then), and a slide world hashes differently."""
+    from mindgap.algorithms.pbrl import fingerprint
+    from mindgap.envs.terrain import load_world
+    from mindgap.envs.terrain.params import identity_leaves
+    from mindgap.teachers.expected_policy import ExpectedPolicyConfig, cache_key
+
+    world = load_world("nav2")
+    tree = (world.params, world.beliefs)
+    leaves = jax.tree.leaves(tree)
+    kept = identity_leaves(tree)
+    assert len(leaves) - len(kept) == 2  # the true table's flag and the belief's
+    assert all(any(k is leaf for leaf in leaves) for k in kept)
+    assert fingerprint(tree) == "e48df9479d0359a1"  # recorded by nav2 run folders before `walls` existed
+
+    slide = world.params.with_dynamics(world.params.dynamics._replace(slide=np.float64(1.0)))
+    assert len(identity_leaves(slide)) == len(jax.tree.leaves(slide))
+    assert fingerprint(slide) != fingerprint(world.params)
+    cfg = ExpectedPolicyConfig.fast()
+    assert cache_key(slide, cfg) != cache_key(world.params, cfg)
+
+
 @pytest.mark.parametrize("a,b", [(-28.0, -8.0), (8.0, 28.0), (5.0, 5.5), (-1.0, 0.5), (0.0, 1.0)])
 def test_truncated_normal_is_exact_in_the_tails(a, b):
     """The slide rule's redraw: a Kolmogorov–Smirnov test against SciPy's truncated normal,

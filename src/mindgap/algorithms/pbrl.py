@@ -44,6 +44,7 @@ import numpy as np
 from .. import rng
 from .._io import atomic_write
 from ..checkpoint import load_pytree, save_pytree
+from ..envs.terrain.params import identity_leaves
 from ..feedback.queries import SAMPLERS, query_scores, select_queries
 from ..feedback.replay import relabel
 from ..feedback.segments import Segments, sample_segments, take
@@ -361,7 +362,7 @@ def fingerprint(tree) -> str:
     import hashlib
 
     h = hashlib.sha256()
-    for leaf in jax.tree.leaves(tree):
+    for leaf in identity_leaves(tree):
         h.update(np.asarray(leaf).tobytes())
     return h.hexdigest()[:16]
 

@@ -37,6 +37,7 @@ from .. import rng
 from ..algorithms.sac import SACConfig, actor_dist
 from ..checkpoint import load_pytree, save_pytree
 from ..envs.terrain import TerrainParams
+from ..envs.terrain.params import identity_leaves
 from ..models.mlp import Params, init_mlp
 from ..models.squashed import squashed_log_prob
 
@@ -91,7 +92,7 @@ def cache_root(cache_dir: str | Path | None = None) -> Path:
 def cache_key(belief_params: TerrainParams, cfg: ExpectedPolicyConfig) -> str:
     """Hash of the belief world's arrays (shapes and dtypes included) and of the training configuration."""
     h = hashlib.sha256(f"expected-policy v{CACHE_VERSION}".encode())
-    for leaf in jax.tree.leaves(belief_params):
+    for leaf in identity_leaves(belief_params):
         a = np.asarray(leaf)
         h.update(f"{a.dtype}{a.shape}".encode())
         h.update(a.tobytes())
