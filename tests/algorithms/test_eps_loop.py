@@ -13,7 +13,7 @@ from mindgap.algorithms.eps_reward import environment_entropy, eps_reward
 from mindgap.algorithms.sac import SACConfig, sac_init
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
-from mindgap.teachers.expectation import ExpectationTeacher
+from mindgap.teachers.expectation import ExpectationTeacher, step_log_likelihood
 
 
 def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
@@ -29,24 +29,40 @@ def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
         eps_config("fast", nats_per_unit=0.0)
     with pytest.raises(ValueError, match="preset"):
         eps_config("huge")
+    with pytest.raises(ValueError, match="unknown surrogate"):
+        eps_config("fast", surrogate="oracle")
+    assert "surrogate" not in eps_config("fast").as_dict()  # recorded only when set: old run folders resume
+    assert eps_config("fast", surrogate="exact").as_dict()["surrogate"] == "exact"
 
 
-@pytest.mark.parametrize("method, centre", [("eps", False), ("eps", True), ("drlhp", False)])
-def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, centre, key):
+@pytest.mark.parametrize(
+    "method, centre, surrogate",
+    [
+        ("eps", False, "learned"),
+        ("eps", True, "learned"),
+        ("drlhp", False, "learned"),
+        ("eps", False, "exact"),
+        ("drlhp", False, "exact"),
+    ],
+)
+def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, centre, surrogate, key):
     world = load_world("d1")
-    cfg = eps_config("fast", method=method, centre_entropy=centre)  # eps, False: the CLI test's round
+    # ("eps", False, "learned") is the CLI test's round
+    cfg = eps_config("fast", method=method, centre_entropy=centre, surrogate=surrogate)
     # an untrained actor stands in for π_H: the round's bookkeeping does not depend on its quality
     person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor)
     carry = eps._init(jax.random.split(key, 2), world.params, cfg)
-    carry = eps._chunk(carry, world.params, cfg, "random")
+    carry = eps._chunk(carry, world.params, person, cfg, "random")
     before = np.asarray(carry.loop.replay.reward)
     carry, _ = eps._feedback(carry, world.params, person, cfg, cfg.teacher)
-    assert np.asarray(carry.queries).tolist() == [cfg.per_round] * 2
+    assert np.asarray(carry.queries).tolist() == [cfg.per_round] * 2  # the round's budget, asked or not
+    asked = np.asarray(carry.prefs.count).tolist()
+    assert asked == ([0, 0] if surrogate == "exact" else [cfg.per_round] * 2)
     for s in range(2):
         c = jax.tree.map(lambda a: a[s], carry)
         buf = c.loop.replay
         n = int(buf.size)
-        params = eps._reward_params(world.params, c, cfg)
+        params = eps._reward_params(world.params, c, person, cfg)
         fn = eps_reward if method == "eps" else eps.expectation_reward
         want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
         np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
@@ -56,9 +72,24 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
             assert float(jnp.mean(h)) == pytest.approx(0.0, abs=1e-3) and float(c.h_shift) != 0.0
         else:
             assert float(c.h_shift) == 0.0  # Eq. 4.6 as written
+        if surrogate == "exact":  # u_H is the person's own score, standardised over the buffer
+            score = step_log_likelihood(person, buf.obs[:n], buf.act[:n], buf.next_obs[:n], cfg.teacher.log_t_floor)
+            u = eps.normalised_u(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
+            np.testing.assert_allclose(np.asarray(u), np.asarray((score - score.mean()) / score.std()), atol=2e-3)
+            assert not np.allclose(np.asarray(params.u_mean), 0.0)
         if method == "drlhp":  # u_H standardised over the buffer (§4.3.3)
             assert float(jnp.mean(buf.reward[:n])) == pytest.approx(0.0, abs=1e-3)
             assert float(jnp.std(buf.reward[:n])) == pytest.approx(1.0, abs=1e-2)
+
+    if surrogate == "exact" and method == "eps":  # Fig. 28's map draws the person's score, not the idle ensemble
+        maps = np.asarray(eps.surrogate_maps(carry, world.params, person, cfg, k=2))
+        h, w = world.params.grid.shape
+        assert maps.shape == (2, 2 * h, 2 * w)
+        (m0, s0), (m1, s1) = np.asarray(carry.u_norm)
+        open_cells = np.isfinite(maps[0])
+        np.testing.assert_allclose(
+            (maps[0] * s0 + m0)[open_cells], (maps[1] * s1 + m1)[open_cells], rtol=1e-4, atol=1e-3
+        )
 
 
 def test_cli_runs_writes_its_outputs_and_resumes(tmp_path, monkeypatch):

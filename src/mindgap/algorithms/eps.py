@@ -57,6 +57,7 @@ from ..teachers.expectation import ExpectationTeacher
 from ..teachers.preference import TeacherConfig
 from .eps_reward import (
     EPSRewardParams,
+    ExactSurrogate,
     entropy_mean_from_replay,
     eps_reward,
     eps_sac_config,
@@ -69,6 +70,7 @@ from .sac import SACConfig, actor_dist
 from .sac_loop import LoopState, loop_init, run_chunk
 
 METHODS = ("eps", "drlhp")
+SURROGATES = ("learned", "exact")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -113,9 +115,18 @@ class EPSConfig(Schedule):
     the uncentred H_T — about −3 nats per step in cells where T_A fits well — charges each
     step and keeps the agent moving (d1: 2 of 3 seeds reach the goal by a wide detour)."""
 
+    surrogate: str = "learned"
+    """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:
+    u_H is the person's own per-step log T_H + log π_H (:class:`~.eps_reward.ExactSurrogate`),
+    standardised over the buffer the same way; no query is asked (the rounds still come on the
+    same schedule, refit T_A and relabel, and count their budget as shown). An oracle
+    ablation, not a method: it needs the person's models, which only a simulation has."""
+
     def check(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+        if self.surrogate not in SURROGATES:
+            raise ValueError(f"unknown surrogate {self.surrogate!r}: choose from {', '.join(SURROGATES)}")
         if self.sampler not in SAMPLERS:
             raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
         if self.lam < 0:
@@ -125,6 +136,12 @@ class EPSConfig(Schedule):
         self.check_schedule()
         if self.queries < 1 or self.per_round < 1:
             raise ValueError("queries and per_round must be at least 1")
+
+    def as_dict(self) -> dict:
+        d = super().as_dict()
+        if self.surrogate == "learned":  # recorded only when set, so earlier run folders still resume
+            del d["surrogate"]
+        return d
 
     def agent_sac(self) -> SACConfig:
         """The SAC the agent runs: α fixed to λ·reward_scale/nats_per_unit for EPS, as configured for DRLHP."""
@@ -170,11 +187,18 @@ def _reward_fn(cfg: EPSConfig):
     return eps_reward if cfg.method == "eps" else expectation_reward
 
 
-def _reward_params(world_params, c: EPSCarry, cfg: EPSConfig) -> EPSRewardParams:
+def u_params(c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig):
+    """What u_H is computed from: one seed's ensemble, or the person's own score (``cfg.surrogate``)."""
+    if cfg.surrogate == "exact":
+        return ExactSurrogate(person, jnp.asarray(cfg.teacher.log_t_floor, jnp.float32))
+    return c.reward.params
+
+
+def _reward_params(world_params, c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig) -> EPSRewardParams:
     f = jnp.float32
     return EPSRewardParams(
         world_params,
-        c.reward.params,
+        u_params(c, person, cfg),
         c.u_norm[0],
         c.u_norm[1],
         c.dynamics,
@@ -217,17 +241,23 @@ def _round_one(c: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSCo
         dyn, _ = train_dynamics(
             k_dyn, buf.obs, buf.act, buf.next_obs, valid, cfg.dynamics, init=_where(c.queries == 0, fresh, dyn)
         )
-    seg_a, seg_b = select_queries(k_q, buf, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates)
-    labels, answered = expectation.answer(k_t, seg_a, seg_b, person, tcfg)
     left = cfg.queries - c.queries
-    answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
-    prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
-    rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
-    u_norm = jnp.stack(u_norm_from_replay(rew.params, buf))
-    c = c._replace(reward=rew, prefs=prefs, dynamics=dyn, u_norm=u_norm, key=key)
+    if cfg.surrogate == "learned":
+        seg_a, seg_b = select_queries(
+            k_q, buf, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
+        )
+        labels, answered = expectation.answer(k_t, seg_a, seg_b, person, tcfg)
+        answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
+        prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
+        rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
+        c = c._replace(reward=rew, prefs=prefs)
+    else:  # the person's own score: nothing to ask or fit
+        loss, acc = jnp.zeros(()), jnp.ones(())
+    u_norm = jnp.stack(u_norm_from_replay(u_params(c, person, cfg), buf))
+    c = c._replace(dynamics=dyn, u_norm=u_norm, key=key)
     if cfg.method == "eps" and cfg.centre_entropy:
-        c = c._replace(h_shift=entropy_mean_from_replay(_reward_params(world_params, c, cfg), buf))
-    replay = relabel(buf, _reward_fn(cfg), _reward_params(world_params, c, cfg))
+        c = c._replace(h_shift=entropy_mean_from_replay(_reward_params(world_params, c, person, cfg), buf))
+    replay = relabel(buf, _reward_fn(cfg), _reward_params(world_params, c, person, cfg))
     shown = jnp.minimum(cfg.per_round, left)
     return c._replace(loop=c.loop._replace(replay=replay), queries=c.queries + shown), (loss, acc)
 
@@ -237,7 +267,7 @@ def _feedback(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EP
     return jax.vmap(lambda c: _round_one(c, world_params, person, cfg, tcfg))(carry)
 
 
-def _chunk(carry: EPSCarry, world_params, cfg: EPSConfig, phase: str) -> EPSCarry:
+def _chunk(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, phase: str) -> EPSCarry:
     learned = phase == "train"
     sac = cfg.agent_sac()
 
@@ -245,7 +275,7 @@ def _chunk(carry: EPSCarry, world_params, cfg: EPSConfig, phase: str) -> EPSCarr
         return run_chunk(
             c.loop,
             world_params,
-            _reward_params(world_params, c, cfg),
+            _reward_params(world_params, c, person, cfg),
             n_steps=cfg.chunk,
             cfg=sac,
             phase=phase,
@@ -288,7 +318,7 @@ def train(
         return _feedback(c, params, person, cfg, tcfg)[0]
 
     def chunk(c, phase):
-        return _chunk(c, params, cfg, phase)
+        return _chunk(c, params, person, cfg, phase)
 
     # the engine's schedule reads cfg.sac (learning_starts) — the same for the agent's SAC
     return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
@@ -324,6 +354,14 @@ def explicability_scores(
             }
         )
     return out
+
+
+def surrogate_maps(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, k: int = 4):
+    """Every seed's :func:`surrogate_map`, of what its u_H is computed from (``cfg.surrogate``): [seeds, H·k, W·k]."""
+    if cfg.surrogate == "exact":
+        u = u_params(carry, person, cfg)
+        return jax.vmap(lambda norm: surrogate_map(u, norm, world_params, k))(carry.u_norm)
+    return jax.vmap(surrogate_map, in_axes=(0, 0, None, None))(carry.reward.params, carry.u_norm, world_params, k)
 
 
 @partial(jax.jit, static_argnames=("k",))

@@ -30,7 +30,8 @@ fixes u_H only up to an additive constant per step and a scale tied to the perso
 so u_H is standardised — ``(û − m)/s`` with ``m, s`` the mean and standard deviation of
 the ensemble's reward over the agent's filled replay buffer (:func:`u_norm_from_replay`),
 recomputed after each fit of u_H, before relabelling. λ then weighs a signal of unit
-spread against r_A, the same for every world.
+spread against r_A, the same for every world. An :class:`ExactSurrogate` (the person's own
+per-step score, an oracle ablation) is standardised over the buffer the same way.
 
 Units of H_T: a differential entropy depends on the units of s'. Here it is measured in
 the world's cells, the units of the exact densities log T_A, log T_H of the terrain
@@ -55,6 +56,7 @@ from ..models.agent_dynamics import dynamics_entropy
 from ..models.gaussian_dynamics import DynamicsModel
 from ..models.mlp import Params
 from ..models.reward_ensemble import ensemble_reward
+from ..teachers.expectation import ExpectationTeacher, step_log_likelihood
 from .sac import SACConfig
 
 
@@ -63,7 +65,8 @@ class EPSRewardParams(NamedTuple):
 
     Attributes:
         world: the true world (r_A, and the cell size that sets the units of H_T).
-        u_params: the reward ensemble's members (u_H before normalisation).
+        u_params: the reward ensemble's members (u_H before normalisation), or an
+            :class:`ExactSurrogate`.
         u_mean, u_std: normalisation of u_H (:func:`u_norm_from_replay`).
         dynamics: T_A.
         min_std: T_A's standard-deviation floor (``DynamicsConfig.min_std``).
@@ -72,7 +75,7 @@ class EPSRewardParams(NamedTuple):
     """
 
     world: TerrainParams
-    u_params: Params
+    u_params: Params  # or an ExactSurrogate
     u_mean: jax.Array
     u_std: jax.Array
     dynamics: DynamicsModel
@@ -116,9 +119,27 @@ def world_reward(world: TerrainParams, obs: jax.Array, act: jax.Array, next_obs:
     return jax.vmap(one)(obs, act, next_obs)
 
 
+class ExactSurrogate(NamedTuple):
+    """u_H as the simulated person's own per-step ``log T_H + log π_H`` (each term floored at
+    ``floor``), in place of the ensemble learned from answers: the oracle ablation of EPS
+    (``EPSConfig.surrogate = "exact"``). It is what the answers are generated from (Eq. 4.2), so a
+    run with it separates what learning u_H from preferences loses from what the objective does."""
+
+    person: ExpectationTeacher
+    floor: jax.Array
+
+
+def raw_u(u_params, obs, act, next_obs) -> jax.Array:
+    """u_H before standardisation: the ensemble's reward, or the person's own score
+    (:class:`ExactSurrogate`). [B, ·] → [B]."""
+    if isinstance(u_params, ExactSurrogate):
+        return step_log_likelihood(u_params.person, obs, act, next_obs, u_params.floor)
+    return ensemble_reward(u_params, obs, act, next_obs)
+
+
 def normalised_u(params: EPSRewardParams, obs, act, next_obs) -> jax.Array:
     """u_H standardised (§4.3.3): [B, ·] → [B]."""
-    return (ensemble_reward(params.u_params, obs, act, next_obs) - params.u_mean) / params.u_std
+    return (raw_u(params.u_params, obs, act, next_obs) - params.u_mean) / params.u_std
 
 
 def environment_entropy(params: EPSRewardParams, obs, act) -> jax.Array:
@@ -162,9 +183,10 @@ def _filled_stats(values: jax.Array, buf: Replay) -> tuple[jax.Array, jax.Array]
     return mean, jnp.sqrt(var)
 
 
-def u_norm_from_replay(u_params: Params, buf: Replay, eps: float = 1e-6) -> tuple[jax.Array, jax.Array]:
-    """(mean, std) of the ensemble's u_H over the filled part of the buffer; std at least ``eps``."""
-    u = relabel(buf, ensemble_reward, u_params).reward
+def u_norm_from_replay(u_params, buf: Replay, eps: float = 1e-6) -> tuple[jax.Array, jax.Array]:
+    """(mean, std) of u_H (the ensemble's, or an :class:`ExactSurrogate`'s) over the filled part
+    of the buffer; std at least ``eps``."""
+    u = relabel(buf, raw_u, u_params).reward
     mean, std = _filled_stats(u, buf)
     return mean, jnp.maximum(std, eps)
 

@@ -41,6 +41,12 @@ def add_parser(sub) -> None:
         action="store_true",
         help="subtract H_T's mean over the buffer (default: Eq. 4.6 as written, its constant kept)",
     )
+    p.add_argument(
+        "--surrogate",
+        default="learned",
+        help="learned: u_H from the person's answers (default); exact: the person's own log T_H + log π_H, "
+        "no queries (an oracle ablation)",
+    )
     p.add_argument("--rollouts", type=int, default=100, help="rollouts per seed for the explicability score")
     p.add_argument("--cache", help="where the person's expected policy π_H is cached (default ~/.cache/mindgap)")
     p.add_argument(
@@ -53,12 +59,11 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     import json
 
-    import jax
     import numpy as np
 
     from .. import rng
     from .._io import atomic_write
-    from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, surrogate_map, train
+    from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, surrogate_maps, train
     from ..envs.terrain import load_world
     from ..plotting.terrain import save_fields
     from ..teachers.expectation import expectation_teacher
@@ -82,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
         sac=sac_config(args),
         sampler=args.sampler,
         centre_entropy=args.centre_entropy,
+        surrogate=args.surrogate,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )
     for name in ("queries", "per_round", "nats_per_unit"):
@@ -121,11 +127,12 @@ def run(args: argparse.Namespace) -> int:
         explicability_std=float(expl.std()),
         explicability_per_seed=expl.tolist(),
     )
-    u = jax.vmap(surrogate_map, in_axes=(0, 0, None))(carry.reward.params, carry.u_norm, world.params)
+    u = surrogate_maps(carry, world.params, person, cfg)
+    what = "learned u_H" if cfg.surrogate == "learned" else "the person's log T_H + log π_H"
     save_fields(
         args.out / "surrogate.png",
         world.params,
-        [(f"learned u_H (standardised, {args.seeds} seed(s))", np.asarray(u).mean(0))],
+        [(f"{what} (standardised, {args.seeds} seed(s))", np.asarray(u).mean(0))],
         label="u_H",
         vmin=None,
         cmap="viridis",

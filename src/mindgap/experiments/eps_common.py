@@ -31,7 +31,7 @@ import numpy as np
 from .. import rng
 from ..algorithms import eps as eps_alg
 from ..algorithms import pbrl
-from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, surrogate_map
+from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, surrogate_maps
 from ..algorithms.explicability import explicability
 from ..algorithms.policy_shaping import ShapedPolicy, shaped_dist, shaped_position_policy
 from ..algorithms.sac import sac_init
@@ -153,8 +153,7 @@ def train(world, job: pc.Job, seeds: int, out, person, *, fresh: bool, progress:
     else:
         res = eps_alg.train(world, job.cfg, person, person_name=job.tags["person"], **kw)
         c = res["carry"]
-        u = jax.vmap(surrogate_map, in_axes=(0, 0, None))(c.reward.params, c.u_norm, world.params)
-        u_map = np.asarray(u).mean(0)
+        u_map = np.asarray(surrogate_maps(c, world.params, person, job.cfg)).mean(0)
     return {
         **{k: res[k] for k in ("curve", "final_returns", "paths")},
         "actor": res["carry"].loop.sac.params.actor,
