@@ -112,6 +112,10 @@ def test_cli_runs_writes_its_outputs_and_resumes(tmp_path, monkeypatch):
     assert main(argv) == 0  # a rerun resumes from the finished checkpoint: the same curve
     assert (out / "curve.csv").read_text() == curve
     assert main([*argv[:-1], "--method", "ppo", "--fresh"]) == 2
+    # the oracle ablation asks no query, and says so (its rounds still count their budget)
+    exact = [*argv[:-2], str(tmp_path / "exact"), "--quiet", "--surrogate", "exact"]
+    assert main(exact) == 0
+    assert json.loads((tmp_path / "exact" / "summary.json").read_text())["queries"] == 0
 
 
 def test_eps_config_defaults_are_consistent():

@@ -120,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         world,
         res,
         label,
+        queries=0 if cfg.surrogate == "exact" else None,
         method=cfg.method,
         lam=cfg.lam,
         person=args.person,
@@ -140,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
         f"{summary['final_return_std']:.1f}, explicability {expl.mean():.1f} ± {expl.std():.1f} over "
-        f"{args.seeds} seed(s), {summary['queries']} queries; curve.csv, trajectories.png, surrogate.png, "
+        f"{args.seeds} seed(s), {summary['queries']} queries asked; curve.csv, trajectories.png, surrogate.png, "
         f"explicability.json in {args.out}/"
     )
     return 0

@@ -62,13 +62,13 @@ def add_parsers(sub) -> None:
         add_run_flags(p)
 
 
-def add_run_flags(p) -> None:
+def add_run_flags(p, steps: int = 40_000) -> None:
     """Flags every learning command shares: steps, seeds, the SAC settings, the run folder.
 
     The SAC defaults are the engine's (:attr:`~mindgap.algorithms.pbrl.Schedule.sac`, which
     explores with :data:`~mindgap.algorithms.pbrl.EXPLORATION`).
     """
-    p.add_argument("--steps", type=int, default=40_000, help="environment steps per seed (default 40000)")
+    p.add_argument("--steps", type=int, default=steps, help=f"environment steps per seed (default {steps})")
     p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
     p.add_argument("--seed", type=int, default=0, help="base seed")
     d = Schedule.sac
@@ -189,8 +189,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def write_outputs(out: Path, world, res: dict, label: str, **record) -> dict:
-    """curve.csv, curve.png, trajectories.png and summary.json of a finished run; returns the summary."""
+def write_outputs(out: Path, world, res: dict, label: str, queries: int | None = None, **record) -> dict:
+    """curve.csv, curve.png, trajectories.png and summary.json of a finished run; returns the summary.
+
+    ``queries`` overrides the count of queries shown that the curve ends on (the exact-surrogate
+    EPS ablation asks none, while its rounds count their budget)."""
     from .._io import atomic_write
     from ..plotting.learning import curve_stats, save_learning_curves
     from ..plotting.terrain import save_world
@@ -211,7 +214,7 @@ def write_outputs(out: Path, world, res: dict, label: str, **record) -> dict:
         "final_return_mean": float(final.mean()),
         "final_return_std": float(final.mean(1).std()),
         "final_return_per_seed": [float(x) for x in final.mean(1)],
-        "queries": int(curve_stats(res["curve"])[3][-1]),
+        "queries": int(curve_stats(res["curve"])[3][-1]) if queries is None else queries,
     }
     atomic_write(out / "summary.json", json.dumps(summary, indent=2))
     return summary

@@ -221,8 +221,11 @@ def log_prob_pos(params: TerrainParams, pos: jax.Array, action: jax.Array, next_
     mean, sigma, stuck = move_model(params, pos, action)
     log_go = jnp.log1p(-stuck)
     slide = _slides(params)
-    log_bumped = jnp.logaddexp(jnp.log(stuck), log_go + log_bump_mass(params, pos, mean, sigma))
-    log_stay = jnp.where(slide, jnp.log(stuck), log_bumped)
+    log_stay = jax.lax.cond(  # a bump adds the refused mass to the stay only under the bump rule
+        slide,
+        lambda: jnp.log(stuck),
+        lambda: jnp.logaddexp(jnp.log(stuck), log_go + log_bump_mass(params, pos, mean, sigma)),
+    )
     z = (next_pos - mean) / sigma
     log_density = log_go - jnp.log(2 * jnp.pi * sigma**2) - 0.5 * jnp.sum(z**2)
     log_z = jax.lax.cond(slide, lambda: log_allowed_mass(params, pos, mean, sigma), lambda: jnp.zeros((), mean.dtype))
