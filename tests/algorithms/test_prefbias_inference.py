@@ -35,6 +35,9 @@ from mindgap.models.prefbias_nets import (
 from mindgap.models.reward_ensemble import PrefData
 from mindgap.teachers.preference import TeacherConfig, answer
 
+PLAIN = dict(absorbing=False, stay_head=False)
+"""The plain model (Gaussian belief, no absorbing states) that most checks here are written for."""
+
 
 def _np_mlp(params, x):
     for i, (w, b) in enumerate(params):
@@ -79,7 +82,7 @@ def _tiny_problem(key):
 def test_preference_likelihood_matches_hand_computation(key):
     """Eq. 3.4–3.5: p̂(a ≻ b) = σ(S_a − S_b), S = Σ_t r_w + log f_φ, against NumPy/SciPy."""
     w, phi, norm, seg_a, seg_b = _tiny_problem(key)
-    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02))
+    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), **PLAIN)
     s_a = _np_score(w, phi, norm, seg_a.obs[0], seg_a.act[0], seg_a.next_obs[0], seg_a.mask[0], 0.02)
     s_b = _np_score(w, phi, norm, seg_b.obs[0], seg_b.act[0], seg_b.next_obs[0], seg_b.mask[0], 0.02)
     p = 1.0 / (1.0 + np.exp(-(s_a - s_b)))
@@ -96,7 +99,9 @@ def test_stay_head_scores_a_stay_by_its_probability(key):
     w, _, norm, seg_a, seg_b = _tiny_problem(key)
     phi = init_mlp(jax.random.fold_in(key, 7), dynamics_sizes(2, 2, (6,), stay=True))
     seg_a = seg_a._replace(next_obs=seg_a.next_obs.at[0, 1].set(seg_a.obs[0, 1]))  # its second step a stay
-    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), stay_head=True)
+    cfg = PrefBiasConfig(
+        reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), stay_head=True, absorbing=False
+    )
 
     def np_score(seg):
         obs, act, nxt = (np.asarray(x[0], np.float64) for x in (seg.obs, seg.act, seg.next_obs))
@@ -120,7 +125,7 @@ def test_stay_head_scores_a_stay_by_its_probability(key):
 def test_negative_elbo_is_cross_entropy_plus_kl_over_n(key):
     """Eq. 3.3 per pair with near-deterministic posteriors: CE of the mean networks + KL / N."""
     w, phi, norm, seg_a, seg_b = _tiny_problem(key)
-    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,)), kl_scale=2.0)
+    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,)), kl_scale=2.0, **PLAIN)
     sigma, s_w, s_phi = 1e-6, cfg.reward_prior_std, cfg.belief_prior_std
     w_prior, phi_prior = jax.tree.map(lambda x: x + 0.03, w), jax.tree.map(lambda x: x - 0.05, phi)
     state = PrefBiasState(init_gaussian(w, sigma), init_gaussian(phi, sigma), w_prior, phi_prior, norm, (), ())
@@ -157,7 +162,7 @@ def _toy_data(key, pairs=48, length=3):
 def test_fit_learns_a_planted_reward_under_jit_and_vmap_over_seeds(key):
     data, norm = _toy_data(key)
     dcfg = DynamicsConfig(hidden=(8,))
-    cfg = PrefBiasConfig(reward_hidden=(16,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3)
+    cfg = PrefBiasConfig(reward_hidden=(16,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3, **PLAIN)
     # f_ψ predicts "no move" with a fixed scale everywhere: every step is equally likely under the
     # prior, so the preferences are the reward's to explain
     psi = init_mlp(jax.random.fold_in(key, 9), dynamics_sizes(2, 2, dcfg.hidden))
@@ -189,8 +194,8 @@ def test_priors_and_recentring(key):
     dcfg = DynamicsConfig(hidden=(8,))
     psi = DynamicsModel(init_mlp(key, dynamics_sizes(2, 2, dcfg.hidden)), norm)
     psi2 = DynamicsModel(jax.tree.map(lambda x: x + 1.0, psi.params), norm._replace(out_std=jnp.full(2, 2.0)))
-    dyn_cfg = PrefBiasConfig(reward_hidden=(4,), dynamics=dcfg, belief_prior="dynamics")
-    rnd_cfg = PrefBiasConfig(reward_hidden=(4,), dynamics=dcfg, belief_prior="random")
+    dyn_cfg = PrefBiasConfig(reward_hidden=(4,), dynamics=dcfg, belief_prior="dynamics", **PLAIN)
+    rnd_cfg = PrefBiasConfig(reward_hidden=(4,), dynamics=dcfg, belief_prior="random", **PLAIN)
     s_dyn, s_rnd = prefbias_init(key, 2, 2, dyn_cfg, psi), prefbias_init(key, 2, 2, rnd_cfg, psi)
     same = jax.tree.map(lambda a, b: bool(jnp.all(a == b)), s_dyn.belief.mean, psi.params)
     assert all(jax.tree.leaves(same))  # q(φ) starts at ψ
@@ -263,7 +268,7 @@ def test_fit_recovers_a_planted_noisy_ice_belief(key):
     person = TeacherConfig(beta=1.0)
     biased, _ = ask(jax.random.fold_in(key, 5), seg_a, seg_b, _NAV1.params, _NAV1.belief("human"), cfg=person)
     truthful, _ = ask(jax.random.fold_in(key, 5), seg_a, seg_b, _NAV1.params, _NAV1.params, cfg=person)
-    cfg = PrefBiasConfig(reward_hidden=(32, 32), dynamics=dcfg, updates=400)
+    cfg = PrefBiasConfig(reward_hidden=(32, 32), dynamics=dcfg, updates=400, **PLAIN)
 
     def run(label, k):
         k_init, k_fit = jax.random.split(k)
@@ -292,7 +297,7 @@ def test_fit_recovers_a_planted_noisy_ice_belief(key):
 def test_absorbing_steps_count_r_abs_of_the_terminal_state(key):
     """With absorbing states S(τ) adds r_abs(s_T) per absorbed step, s_T where the last real step ended."""
     w, phi, norm, seg_a, seg_b = _tiny_problem(key)
-    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02))
+    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), **PLAIN)
     weights = RewardWeights(w, 0.05 * jax.random.normal(jax.random.fold_in(key, 7), (256,)))
     # b ended after its first step (a goal or a pit): its second step is absorbing
     seg_a = AbsorbingSegments(*seg_a, jnp.zeros((1, 2), bool))
@@ -337,7 +342,9 @@ def test_fit_learns_which_terminal_state_is_worse(key):
     label = (~swap).astype(jnp.float32)  # a is preferred when it is the goal segment
     data = PrefData(seg_a, seg_b, label, jnp.asarray(pairs, jnp.int32))
     dcfg = DynamicsConfig(hidden=(8,))
-    cfg = PrefBiasConfig(reward_hidden=(8,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3, absorbing=True)
+    cfg = PrefBiasConfig(
+        reward_hidden=(8,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3, absorbing=True, stay_head=False
+    )
     norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.full(2, 0.05))
     psi = init_mlp(jax.random.fold_in(key, 9), dynamics_sizes(2, 2, dcfg.hidden))
     state = prefbias_init(ks[3], 2, 2, cfg, DynamicsModel(psi, norm))

@@ -98,15 +98,20 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
         train(icy, other, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
 
-@pytest.mark.parametrize("option", [None, "absorbing", "stay_head"])
-def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, option, tmp_path):
-    absorbing = option == "absorbing"
+@pytest.mark.parametrize(
+    "opts",
+    [{}, {"stay_head": True}, {"absorbing": True, "stay_head": True}],
+    ids=["plain", "stay_head", "defaults"],
+)
+def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, tmp_path):
+    absorbing = opts.get("absorbing", False)
     if absorbing:  # a world whose episodes end every few steps, so that queries hold absorbing steps
         (tmp_path / "pocket.toml").write_text(POCKET)
         icy = load_world(str(tmp_path / "pocket.toml"))
     fast = prefbias_config("fast")
-    opts = {option: True} if option else {}
-    cfg = prefbias_config("fast", prefbias=dataclasses.replace(fast.prefbias, **opts))
+    flags = {"absorbing": False, "stay_head": False, **opts}
+    cfg = prefbias_config("fast", prefbias=dataclasses.replace(fast.prefbias, **flags))
+    assert (cfg == fast) == (flags == {"absorbing": True, "stay_head": True})  # both on by default
     record = cfg.as_dict()["prefbias"]
     assert {k for k in ("absorbing", "stay_head") if k in record} == set(opts)  # recorded only when on
     carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.params, cfg)
@@ -133,7 +138,7 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, option,
     psi = carry.dynamics.params[0][0]
     np.testing.assert_array_equal(np.asarray(carry.model.belief_prior[0][0]), np.asarray(psi))
     outputs = carry.dynamics.params[-1][1].shape[-1]  # mean and scale per coordinate, and the stay logit
-    assert outputs == 4 + (option == "stay_head") == carry.model.belief.mean[-1][1].shape[-1]
+    assert outputs == 4 + opts.get("stay_head", False) == carry.model.belief.mean[-1][1].shape[-1]
     np.testing.assert_allclose(np.asarray(carry.model.norm.out_std), np.asarray(carry.dynamics.norm.out_std))
     assert float(jnp.abs(carry.dynamics.norm.out_std).min()) < 0.5  # the buffer's spread, not the placeholder's 1
 

@@ -23,7 +23,9 @@ from mindgap.models.mlp import init_mlp
 from mindgap.models.prefbias_nets import reward_sizes
 
 OUT_STD, MIN_STD = 0.1, 0.01
-CFG = PrefBiasConfig(reward_hidden=(4,), dynamics=DynamicsConfig(hidden=(4,), min_std=MIN_STD))
+CFG = PrefBiasConfig(
+    reward_hidden=(4,), dynamics=DynamicsConfig(hidden=(4,), min_std=MIN_STD), absorbing=False, stay_head=False
+)
 NORM = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.full(2, OUT_STD))
 
 

@@ -52,6 +52,11 @@ from .sac_loop import LoopState, loop_init, run_chunk
 class PrefBiasLoopConfig(Schedule):
     """One PrefBias run (all seeds share it; hashable, a static jit argument); the schedule's fields are :class:`Schedule`'s."""
 
+    total_steps: int = 50_000
+    """Environment steps per seed. Longer than the engine's 40 000: the reward and the belief still
+    change until the last feedback round (step 22 000 with 800 queries, 80 a round), and with the
+    stay head and absorbing states 30 000 steps left most nav1 seeds in the sand and most nav2
+    seeds frozen, 50 000 none (README, "PrefBias experiments")."""
     method: str = "prefbias"
     """Always 'prefbias' (the engine's schedule reads it)."""
     prefbias: PrefBiasConfig = PrefBiasConfig()

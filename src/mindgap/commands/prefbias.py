@@ -1,6 +1,6 @@
 """``mindgap prefbias``: PrefBias (Algorithm 2) on a terrain world; the outputs of ``mindgap pebble`` plus the belief.
 
-mindgap prefbias --world nav1 --teacher biased --queries 800 --steps 40000 --seeds 5 --out runs/prefbias-nav1
+mindgap prefbias --world nav1 --teacher biased --queries 800 --seeds 5 --out runs/prefbias-nav1
 
 Writes curve.csv, curve.png, trajectories.png, summary.json and belief.png: the noise the
 learned belief f_φ predicts at each cell (mean over seeds) beside the agent's dynamics
@@ -11,8 +11,14 @@ from __future__ import annotations
 
 import argparse
 
+from ..algorithms.prefbias import PrefBiasLoopConfig
+from ..algorithms.prefbias_inference import PrefBiasConfig
 from ..feedback.prefbias_queries import SAMPLERS
 from .learn import add_run_flags
+
+
+def _on(flag: bool) -> str:
+    return "on" if flag else "off"
 
 
 def add_parser(sub) -> None:
@@ -38,23 +44,23 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--absorbing",
         action=argparse.BooleanOptionalAction,
-        default=False,
+        default=PrefBiasConfig.absorbing,
         help="absorbing states for the learned reward (Kostrikov et al. 2019): segments keep the steps after a "
-        "goal or pit and r_w learns what each terminal state is worth (default: off)",
+        f"goal or pit and r_w learns what each terminal state is worth (default: {_on(PrefBiasConfig.absorbing)})",
     )
     p.add_argument(
         "--stay-head",
         action=argparse.BooleanOptionalAction,
-        default=False,
+        default=PrefBiasConfig.stay_head,
         help="f_ψ and f_φ also predict the probability of not moving at all (stuck or bumped), a point mass "
-        "instead of a far tail of the Gaussian (default: off)",
+        f"instead of a far tail of the Gaussian (default: {_on(PrefBiasConfig.stay_head)})",
     )
     p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
     p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
     p.add_argument(
         "--fast", action="store_true", help="the quick preset (tiny networks, 1500 steps, 30 queries; for dry runs)"
     )
-    add_run_flags(p)
+    add_run_flags(p, steps=PrefBiasLoopConfig.total_steps)
     p.set_defaults(steps=None, hidden=None, learning_starts=None, batch=None)  # the preset's unless given
 
 
@@ -63,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config, train
+    from ..algorithms.prefbias import prefbias_config, train
     from ..envs.terrain import load_world
     from ..models.prefbias_nets import table_noise_map
     from ..plotting.terrain import save_fields

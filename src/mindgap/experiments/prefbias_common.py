@@ -4,7 +4,7 @@
   the PEBBLE and SAC runs of :mod:`~mindgap.algorithms.pbrl` that copy its steps, chunks,
   evaluation, SAC settings, rounds, segments and exploration, so that methods differ only
   in how they learn the reward. Presets ``fast`` (tiny; tests and dry runs) and ``full``
-  (§3.4: 30 000 steps, 80 queries a round, the rest the algorithms' defaults).
+  (PrefBias's defaults, 50 000 steps, with 80 queries a round).
 * **Jobs** in a :class:`~._runfolder.RunFolder`: ``WORLD/reference`` (a uniformly random
   policy's return and the planning check's routes) and one job per learner, all seeds
   vmapped inside one call of the existing ``train``. A finished job is one JSON record;
@@ -75,11 +75,11 @@ def _schedule(pb: PrefBiasLoopConfig) -> dict:
 
 
 def learners(preset: str) -> Learners:
-    """``full``: PrefBias's defaults with 30 000 steps and 80 queries a round (as PEBBLE's
+    """``full``: PrefBias's defaults (50 000 steps) with 80 queries a round (as PEBBLE's
     measured nav runs); ``fast``: :func:`prefbias_config` ``("fast")`` — 1500 steps, 30 queries,
     tiny networks — and a small reward ensemble for PEBBLE."""
     if preset == "full":
-        pb = prefbias_config("full", total_steps=30_000, per_round=80)
+        pb = prefbias_config("full", per_round=80)
         reward = RewardConfig()
     elif preset == "fast":
         pb = prefbias_config("fast")

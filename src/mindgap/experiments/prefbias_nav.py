@@ -49,7 +49,7 @@ class NavConfig:
 
 
 def preset(name: str) -> NavConfig:
-    """``full`` (5 seeds, 30 000 steps, 80 queries a round) or ``fast`` (1 seed, 1500 steps, 30 queries)."""
+    """``full`` (5 seeds, 50 000 steps, 80 queries a round) or ``fast`` (1 seed, 1500 steps, 30 queries)."""
     if name == "full":
         return NavConfig()
     if name == "fast":
