@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from mindgap.envs.terrain import NAMED_WORLDS, load_world, world_from_dict
+from mindgap.envs.terrain.dynamics import log_prob_pos
 from mindgap.planning.terrain import compass_actions, discretise, plan, plan_action, rollouts, route_stats
-from mindgap.planning.terrain_check import check_world, evaluate, noise_field
+from mindgap.planning.terrain_check import check_world, evaluate, noise_field, person_score
 
 CORRIDOR = {
     "horizon": 30,
@@ -59,6 +60,31 @@ def test_evaluate_reports_failures():
     bad = evaluate({"true_prefers": "sand", "wider_berth": 3.0}, on_ice, on_sand)
     assert [e.held for e in bad] == [False, False]
     assert "0.8" not in bad[0].measured and "80%" in bad[0].measured
+    want = {"person_prefers": "expected"}
+    assert [evaluate(want, on_ice, on_sand, {"optimal": a, "expected": b})[0].held for a, b in ((-9, -2), (3, -2))] == [
+        True,
+        False,
+    ]
+    assert not evaluate(want, on_ice, None)[0].held  # no belief, no person to score with
+
+
+def test_person_score_is_the_teachers_sum_of_reward_and_believed_log_density(key):
+    """A corridor whose person believes the floor twice as noisy: the score by hand, step by step."""
+    w = world_from_dict({**CORRIDOR, "beliefs": {"human": {"floor": {"noise": 0.04}}}})
+    p = plan(w.params, n=4)
+    pos, rew, alive = rollouts(key, w.params, plan_action, 3, p)
+    pos, rew, alive = np.asarray(pos), np.asarray(rew), np.asarray(alive)
+    by_hand = []
+    for i in range(3):
+        total = 0.0
+        for t in np.flatnonzero(alive[i]):
+            a = plan_action(p, jnp.asarray(pos[i, t]))
+            lp = float(log_prob_pos(w.belief(), jnp.asarray(pos[i, t]), a, jnp.asarray(pos[i, t + 1])))
+            total += rew[i, t] + max(lp, -20.0)
+        by_hand.append(total)
+    assert person_score(w.params, w.belief(), p, jnp.asarray(pos), jnp.asarray(alive)) == pytest.approx(
+        np.mean(by_hand), rel=1e-4
+    )
 
 
 @pytest.mark.parametrize("name", NAMED_WORLDS)

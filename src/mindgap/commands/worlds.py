@@ -113,6 +113,11 @@ def _plan(args) -> int:
         if chk.expected is not None:
             print(f"  expected route: {chk.expected.describe()}   (belief '{chk.belief}', as the person imagines it)")
             print(f"  expected policy run in the real world: {chk.expected_in_truth.describe()}")
+            sc = chk.person_scores
+            print(
+                f"  the person's Σ[r + log T_H] of each route as the robot drives it: optimal {sc['optimal']:+.1f}, "
+                f"expected {sc['expected']:+.1f}"
+            )
         for e in chk.expectations:
             print(f"  [{'ok' if e.held else 'FAILED'}] {e.text}: {e.measured}")
         if not chk.passed:
@@ -134,6 +139,7 @@ def _plan(args) -> int:
             "optimal": chk.true._asdict(),
             "expected": chk.expected._asdict() if chk.expected is not None else None,
             "expected_in_truth": chk.expected_in_truth._asdict() if chk.expected is not None else None,
+            "person_scores": chk.person_scores,
             "expectations": [e._asdict() for e in chk.expectations],
         }
     atomic_write(out / "plan.json", json.dumps(report, indent=2))

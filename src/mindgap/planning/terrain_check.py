@@ -3,7 +3,9 @@
 ``check_world`` plans under the true table (the optimal route, and a near-optimal
 reference return for learners) and under a belief (the route the person expects, rolled
 out in the world as the person imagines it), then tests the world file's ``[expect]``
-entries (§3.2's required behaviours) on the rollouts.
+entries (§3.2's required behaviours) on the rollouts. It also drives both plans in the real
+world and scores them as the preference teacher would (Σ_t [r_H + log T_H], Eq. 3.2): a person
+who prefers the expected route in those terms misleads a learner that ignores her belief.
 """
 
 from __future__ import annotations
@@ -17,8 +19,11 @@ import numpy as np
 from .. import rng
 from ..envs.terrain.dynamics import move_model
 from ..envs.terrain.layout import WALL
-from ..envs.terrain.world import TerrainWorld
-from .terrain import RouteStats, plan, plan_action, rollouts, route_stats
+from ..envs.terrain.params import TerrainState
+from ..envs.terrain.world import TerrainWorld, observe
+from ..feedback.segments import Segments
+from ..teachers.preference import TeacherConfig, segment_scores
+from .terrain import Plan, RouteStats, plan, plan_action, rollouts, route_stats
 
 
 class Expectation(NamedTuple):
@@ -40,6 +45,9 @@ class PlanningCheck(NamedTuple):
     true_paths: list[np.ndarray]
     expected_paths: list[np.ndarray]
     expectations: list[Expectation]
+    person_scores: dict | None = None
+    """The person's mean Σ_t [r_H + log T_H] of the ``optimal`` and ``expected`` plans as the robot
+    really drives them (:func:`person_score`); None without a belief."""
 
     @property
     def reference_return(self) -> float:
@@ -80,7 +88,8 @@ def check_world(
     pos, rew, alive = rollouts(k_true, world.params, plan_action, count, p_true)
     true = route_stats(world.params, pos, rew, alive)
     true_paths = _paths(pos, alive, draw)
-    expected, expected_paths, in_truth, bname = None, [], None, None
+    true_rollouts = (pos, alive)
+    expected, expected_paths, in_truth, bname, scores = None, [], None, None, None
     if world.beliefs:
         bname = belief or next(iter(world.beliefs))
         bparams = world.belief(bname)
@@ -89,7 +98,12 @@ def check_world(
         expected = route_stats(bparams, pos, rew, alive)
         expected_paths = _paths(pos, alive, draw)
         # the policy the person expects, run in the real world: what obeying them would cost
-        in_truth = route_stats(world.params, *rollouts(k_real, world.params, plan_action, count, p_b))
+        pos, rew, alive = rollouts(k_real, world.params, plan_action, count, p_b)
+        in_truth = route_stats(world.params, pos, rew, alive)
+        scores = {
+            "optimal": person_score(world.params, bparams, p_true, *true_rollouts),
+            "expected": person_score(world.params, bparams, p_b, pos, alive),
+        }
     return PlanningCheck(
         world.name,
         bname,
@@ -98,12 +112,27 @@ def check_world(
         in_truth,
         true_paths,
         expected_paths,
-        evaluate(world.expect, true, expected),
+        evaluate(world.expect, true, expected, scores),
+        scores,
     )
 
 
-def evaluate(expect: dict, true: RouteStats, expected: RouteStats | None) -> list[Expectation]:
-    """Test a world's ``[expect]`` entries against the two routes' statistics."""
+def person_score(world_params, belief_params, p: Plan, positions, alive) -> float:
+    """The preference teacher's mean score Σ_t [r_H + log T_H] (Eq. 3.2, floored as
+    :class:`~mindgap.teachers.preference.TeacherConfig` floors log T_H) of real-world rollouts of plan ``p``.
+
+    ``positions [N, T+1, 2]`` and ``alive [N, T]`` as :func:`~.terrain.rollouts` returns them.
+    """
+    obs = observe(TerrainState(positions, jnp.zeros((), jnp.int32), False), world_params)
+    act = jax.vmap(jax.vmap(lambda q: plan_action(p, q)))(positions[:, :-1])
+    seg = Segments(obs[:, :-1], act, obs[:, 1:], jnp.asarray(alive, bool))
+    return float(segment_scores(seg, world_params, belief_params, TeacherConfig()).mean())
+
+
+def evaluate(
+    expect: dict, true: RouteStats, expected: RouteStats | None, person_scores: dict | None = None
+) -> list[Expectation]:
+    """Test a world's ``[expect]`` entries against the two routes' statistics (and the person's scores)."""
     out = []
     for key, route, stats in (("true_prefers", "optimal", true), ("belief_prefers", "expected", expected)):
         if key not in expect:
@@ -134,6 +163,13 @@ def evaluate(expect: dict, true: RouteStats, expected: RouteStats | None) -> lis
                     f"{expected.pit_mean:.2f} vs {true.pit_mean:.2f} cells (+{gap:.2f})",
                 )
             )
+    if expect.get("person_prefers") == "expected":
+        text = "the person scores the expected route above the optimal one, both as the robot drives them"
+        if person_scores is None:
+            out.append(Expectation(text, False, "no belief to plan with"))
+        else:
+            opt, exp = person_scores["optimal"], person_scores["expected"]
+            out.append(Expectation(text, exp > opt, f"Σ[r + log T_H] {exp:+.1f} vs {opt:+.1f}"))
     return out
 
 

@@ -31,6 +31,7 @@ A world file::
     true_prefers = "ice"          # the optimal route spends more steps on ice than on sand
     belief_prefers = "sand"       # the route the person expects: more on sand
     wider_berth = 0.5             # the expected route keeps ≥ 0.5 cell farther from pits
+    person_prefers = "expected"   # the person's Σ[r + log T_H] favours the expected route as driven
     eps_route = "sand"            # the route EPS should take (ch. 4): ice, sand or detour
                                   # (a berth around the pit wider than the optimal route's);
                                   # judged by `mindgap reproduce eps`, not the planning check
@@ -50,7 +51,7 @@ from .world import TerrainWorld
 
 NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4")
 _KEYS = {"name", "description", "horizon", "start_jitter", "layout", "rewards", "dynamics", "beliefs", "expect"}
-EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth", "eps_route"}
+EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth", "eps_route", "person_prefers"}
 EPS_ROUTES = ("ice", "sand", "detour")
 
 
@@ -94,6 +95,8 @@ def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
     for key in ("true_prefers", "belief_prefers"):
         if key in expect and expect[key] not in ("ice", "sand"):
             raise ValueError(f"{where}[expect] {key} must be 'ice' or 'sand', got {expect[key]!r}")
+    if "person_prefers" in expect and expect["person_prefers"] != "expected":
+        raise ValueError(f"{where}[expect] person_prefers must be 'expected', got {expect['person_prefers']!r}")
     if "eps_route" in expect and expect["eps_route"] not in EPS_ROUTES:
         raise ValueError(
             f"{where}[expect] eps_route must be one of {', '.join(EPS_ROUTES)}, got {expect['eps_route']!r}"
