@@ -67,7 +67,7 @@ class PrefBiasConfig:
     absorbing: bool = True
     """Give r_w absorbing states (a learned r_abs per terminal state; Kostrikov et al. 2019). Without them
     a segment that ends in nav2's pit after three steps is compared with ten-step segments as a shorter
-    sum, and every seed learned to dive into the pit (README, "PrefBias experiments")."""
+    sum, and four nav2 seeds of five learned to dive into the pit (README, "PrefBias experiments")."""
     dynamics: DynamicsConfig = DynamicsConfig()
     """Architecture (and training) of f_ψ; the belief f_φ shares its architecture and scale floor."""
     stay_head: bool = True
