@@ -19,4 +19,6 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
 fi
 .venv/bin/ruff check src tests benchmarks
 # Two test processes (pytest-xdist): most of the suite's time is XLA compiling, one core each.
-exec .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" "$@"
+# A file's tests stay in one process (--dist loadfile), so those built on one configuration
+# compile it once.
+exec .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" --dist loadfile "$@"

@@ -52,6 +52,14 @@ pit_noise = 1.0
 """
 
 
+def _cli_fast(**flags):
+    """``mindgap prefbias --fast``'s configuration (the learners' default exploration on), with
+    PrefBias's ``flags`` changed: tests on it share the CLI test's compiled programs."""
+    fast = prefbias_config("fast")
+    sac = dataclasses.replace(fast.sac, **pbrl.EXPLORATION)
+    return prefbias_config("fast", sac=sac, prefbias=dataclasses.replace(fast.prefbias, **flags))
+
+
 @pytest.fixture(scope="module")
 def world_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("world") / "icy.toml"
@@ -65,7 +73,7 @@ def icy(world_file):
 
 
 def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
-    cfg = prefbias_config("fast")
+    cfg = _cli_fast()
     whole = train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
     saves = {"n": 0}
@@ -93,7 +101,7 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
     assert noise.shape == (2, *wall.shape)
     assert np.all(np.isnan(noise[:, wall])) and np.all(noise[:, ~wall] > 0)
     assert not np.allclose(noise[0], noise[1])
-    other = prefbias_config("fast", queries=20)
+    other = dataclasses.replace(cfg, queries=20)
     with pytest.raises(ValueError, match="other settings"):
         train(icy, other, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
@@ -108,10 +116,10 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, t
     if absorbing:  # a world whose episodes end every few steps, so that queries hold absorbing steps
         (tmp_path / "pocket.toml").write_text(POCKET)
         icy = load_world(str(tmp_path / "pocket.toml"))
-    fast = prefbias_config("fast")
     flags = {"absorbing": False, "stay_head": False, **opts}
-    cfg = prefbias_config("fast", prefbias=dataclasses.replace(fast.prefbias, **flags))
-    assert (cfg == fast) == (flags == {"absorbing": True, "stay_head": True})  # both on by default
+    cfg = _cli_fast(**flags)
+    assert (cfg.prefbias == prefbias_config("fast").prefbias) == (flags == {"absorbing": True, "stay_head": True})
+    # (both on by default)
     record = cfg.as_dict()["prefbias"]
     assert {k for k in ("absorbing", "stay_head") if k in record} == set(opts)  # recorded only when on
     carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.params, cfg)

@@ -16,11 +16,13 @@ from mindgap.envs.terrain import (
     position,
     reset,
     reward,
-    step,
     world_from_dict,
 )
+from mindgap.envs.terrain import step as _step
 from mindgap.envs.terrain.layout import GOAL, PIT
 from mindgap.envs.terrain.world import potential
+
+step = jax.jit(_step)  # an eager call would compile its control flow again at every call
 
 SPEC = {
     "name": "tiny",

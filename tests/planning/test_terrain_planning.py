@@ -74,12 +74,13 @@ def test_person_score_is_the_teachers_sum_of_reward_and_believed_log_density(key
     p = plan(w.params, n=4)
     pos, rew, alive = rollouts(key, w.params, plan_action, 3, p)
     pos, rew, alive = np.asarray(pos), np.asarray(rew), np.asarray(alive)
+    act, log_prob = jax.jit(plan_action), jax.jit(log_prob_pos)  # eager calls would compile at every step
     by_hand = []
     for i in range(3):
         total = 0.0
         for t in np.flatnonzero(alive[i]):
-            a = plan_action(p, jnp.asarray(pos[i, t]))
-            lp = float(log_prob_pos(w.belief(), jnp.asarray(pos[i, t]), a, jnp.asarray(pos[i, t + 1])))
+            a = act(p, jnp.asarray(pos[i, t]))
+            lp = float(log_prob(w.belief(), jnp.asarray(pos[i, t]), a, jnp.asarray(pos[i, t + 1])))
             total += rew[i, t] + max(lp, -20.0)
         by_hand.append(total)
     assert person_score(w.params, w.belief(), p, jnp.asarray(pos), jnp.asarray(alive)) == pytest.approx(

@@ -17,6 +17,7 @@ def _segments(world, starts, action, length=6, key=None):
     """Segments driven with a constant action from each start, stepped in the true world."""
     from mindgap.envs.terrain import step
 
+    step = jax.jit(step)  # called eagerly, its control flow would compile again at every call
     key = jax.random.key(0) if key is None else key
     obs, acts, nxt = [], [], []
     for i, (x, y) in enumerate(starts):
@@ -24,7 +25,11 @@ def _segments(world, starts, action, length=6, key=None):
         o, a, n = [], [], []
         for t in range(length):
             out = step(jax.random.fold_in(key, i * 100 + t), s, jnp.asarray(action), world.params)
-            o.append(observe(s, world.params)), a.append(jnp.asarray(action)), n.append(observe(out.state, world.params))
+            (
+                o.append(observe(s, world.params)),
+                a.append(jnp.asarray(action)),
+                n.append(observe(out.state, world.params)),
+            )
             s = out.state
         obs.append(jnp.stack(o)), acts.append(jnp.stack(a)), nxt.append(jnp.stack(n))
     return Segments(jnp.stack(obs), jnp.stack(acts), jnp.stack(nxt), jnp.ones((len(starts), length), bool))
@@ -55,8 +60,10 @@ def _pairs(nav1, n=400):
     """n pairs whose scores differ clearly: moving toward vs away from the goal on d1-like progress."""
     long_ = _segments(nav1, [(12.5, 3.5)], [-1.0, 0.0], length=3)
     short = long_._replace(mask=long_.mask.at[:, 1:].set(False))  # 1 step instead of 3: return −1 vs −3
+
     def rep(s):
         return jax.tree.map(lambda x: jnp.repeat(x, n, 0), s)
+
     return rep(short), rep(long_)
 
 
