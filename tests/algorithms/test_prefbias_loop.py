@@ -118,8 +118,8 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, t
         icy = load_world(str(tmp_path / "pocket.toml"))
     flags = {"absorbing": False, "stay_head": False, **opts}
     cfg = _cli_fast(**flags)
-    assert (cfg.prefbias == prefbias_config("fast").prefbias) == (flags == {"absorbing": True, "stay_head": True})
-    # (both on by default)
+    both_on = flags == {"absorbing": True, "stay_head": True}
+    assert (cfg.prefbias == prefbias_config("fast").prefbias) == both_on  # both on by default
     record = cfg.as_dict()["prefbias"]
     assert {k for k in ("absorbing", "stay_head") if k in record} == set(opts)  # recorded only when on
     carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.params, cfg)

@@ -25,11 +25,9 @@ def _segments(world, starts, action, length=6, key=None):
         o, a, n = [], [], []
         for t in range(length):
             out = step(jax.random.fold_in(key, i * 100 + t), s, jnp.asarray(action), world.params)
-            (
-                o.append(observe(s, world.params)),
-                a.append(jnp.asarray(action)),
-                n.append(observe(out.state, world.params)),
-            )
+            o.append(observe(s, world.params))
+            a.append(jnp.asarray(action))
+            n.append(observe(out.state, world.params))
             s = out.state
         obs.append(jnp.stack(o)), acts.append(jnp.stack(a)), nxt.append(jnp.stack(n))
     return Segments(jnp.stack(obs), jnp.stack(acts), jnp.stack(nxt), jnp.ones((len(starts), length), bool))
