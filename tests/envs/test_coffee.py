@@ -19,12 +19,12 @@ from mindgap.envs.coffee import (
     coffee_transitions,
     event_probability,
     factor_pairs,
-    factored_space,
+    factored_layout,
     make_coffee,
     state_id,
 )
 from mindgap.envs.coffee_demos import SANITY, SCENARIOS, sanity_trace, study_traces, to_demonstrations, trace_text
-from mindgap.models.belief import per_state_action
+from mindgap.models.belief import factored, per_state_action
 
 
 @pytest.mark.parametrize("robot", ["mobile", "humanoid"])
@@ -81,18 +81,18 @@ def test_factor_pairs_and_event_probability_read_any_tensor():
 
 
 def test_factored_space_represents_every_belief_exactly():
-    space = factored_space(("spill",))
+    space = factored(*factored_layout(("spill",)))
     assert space.kind == "factored" and space.n_factors == 2  # spill + the fixed rest
     for p in (0.05, 0.6):
         truth = coffee_transitions(CoffeeParams(spill=p))
         theta = space.from_transitions(truth)
         np.testing.assert_allclose(theta[0], [p, 1 - p], atol=1e-6)
         np.testing.assert_allclose(space.to_transitions(theta), truth, atol=1e-6)
-    both = factored_space(FACTORS, CoffeeParams(spill=0.2, wet=0.7))
+    both = factored(*factored_layout(FACTORS, CoffeeParams(spill=0.2, wet=0.7)))
     truth = coffee_transitions(CoffeeParams(spill=0.2, wet=0.7))
     np.testing.assert_allclose(both.to_transitions(both.from_transitions(truth)), truth, atol=1e-6)
     with pytest.raises(ValueError, match="learn it too"):
-        factored_space(("spill",), CoffeeParams(spill=0.2, wet=0.7))
+        factored_layout(("spill",), CoffeeParams(spill=0.2, wet=0.7))
 
 
 def test_per_sa_space_covers_the_spill_outcome():

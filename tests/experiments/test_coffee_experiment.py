@@ -41,7 +41,13 @@ def test_reproduce_coffee_fast(tmp_path, capsys):
     people = rows(out / "participants.csv")
     assert sum(p["valid"] == "True" for p in people) == 2 * cfg.participants
     assert all(p["dropped"] for p in people if p["valid"] == "False")
-    for name in ("fig12.png", "ratings_by_demo.png", "demos.txt", "table.md", "demos/humanoid/3-sunny-umbrella-spill.png"):
+    for name in (
+        "fig12.png",
+        "ratings_by_demo.png",
+        "demos.txt",
+        "table.md",
+        "demos/humanoid/3-sunny-umbrella-spill.png",
+    ):
         assert (out / name).stat().st_size > 0, name
     assert "SPILLS" in (out / "demos.txt").read_text()
     # a rerun resumes (nothing is refitted) and prints the same tables

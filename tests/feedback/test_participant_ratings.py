@@ -16,12 +16,18 @@ HEAD = "participant,robot,demo,step,state,action,rating,q1,q2\n"
 
 
 def person(pid, ratings, robot="mobile", answers=None):
-    demos = make_demonstrations([[0, 1], [2, 0]], [[1, 1], [0, 0]], [[True, True], [True, False]], n_states=3, n_actions=2)
-    return ParticipantRatings(pid, RatedDemonstrations(demos, np.asarray(ratings)), ("walk", "wait"), answers or {}, robot)
+    demos = make_demonstrations(
+        [[0, 1], [2, 0]], [[1, 1], [0, 0]], [[True, True], [True, False]], n_states=3, n_actions=2
+    )
+    return ParticipantRatings(
+        pid, RatedDemonstrations(demos, np.asarray(ratings)), ("walk", "wait"), answers or {}, robot
+    )
 
 
 def read(path, **kw):
-    return read_participant_ratings(path, n_states=3, n_actions=2, catalogue=CATALOGUE, robots=("mobile", "humanoid"), **kw)
+    return read_participant_ratings(
+        path, n_states=3, n_actions=2, catalogue=CATALOGUE, robots=("mobile", "humanoid"), **kw
+    )
 
 
 def test_round_trip_with_participants_and_answers(tmp_path):

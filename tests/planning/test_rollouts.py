@@ -2,7 +2,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mindgap import rng
-from mindgap.planning import rollout, state_visitation
+from mindgap.envs.tabular import rollout
+from mindgap.planning import state_visitation
 
 
 def test_rollouts_follow_policy_and_dynamics():

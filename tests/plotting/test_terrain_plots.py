@@ -5,7 +5,8 @@ import pytest
 from PIL import Image
 
 from mindgap.envs.terrain import load_world
-from mindgap.plotting.terrain import save_fields, save_panels, save_rollout_gif, save_world, terrain_image
+from mindgap.envs.terrain.gym_env import terrain_image
+from mindgap.plotting.terrain import save_fields, save_panels, save_rollout_gif, save_world
 
 
 def test_map_colours_terrains_and_darkens_easier_sand():

@@ -27,7 +27,8 @@ is ``w_coffee · φ_0 + w_wet · φ_1`` with ``w_coffee > 0`` and ``w_wet ≤ 0`
 
 The believed dynamics that matter are few: a person's belief is this world with
 another spill (or wet) probability, :func:`coffee_transitions`, and
-:func:`factored_space` lets GeReL learn just those factor probabilities.
+:func:`factored_layout` gives the layout of a belief that learns just those factor
+probabilities (:func:`mindgap.models.belief.factored` builds GeReL's belief from it).
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ..models.belief import BeliefSpace, factored
 from .tabular import TabularMDP
 
 VARIABLES = ("in_cafe", "wet", "umbrella", "raining", "robot_coffee", "user_coffee")
@@ -199,8 +199,26 @@ def event_probability(transitions, name: str = "spill") -> float:
     return float(t[pairs.states, pairs.actions, pairs.event].mean())
 
 
-def factored_space(learn: tuple[str, ...] = ("spill",), truth: CoffeeParams | None = None) -> BeliefSpace:
-    """GeReL's per-factor belief: one Beta per learned factor, the rest of the world as it is.
+class FactoredLayout(NamedTuple):
+    """A factored belief over the coffee world: the arguments of :func:`mindgap.models.belief.factored`.
+
+    Attributes:
+        factor: ``[64, 4]`` int32, the learned factor governing each ``(s, a)``, or ``-1``
+            for a pair fixed to its true next state.
+        targets: ``[64, 4, 2]`` int32, next state of the event and the non-event outcome
+            of a learned pair; a fixed pair's true next state in both slots.
+        n_outcomes: ``[F]`` int, outcomes of each learned factor (2: a Beta each).
+    """
+
+    factor: np.ndarray
+    targets: np.ndarray
+    n_outcomes: np.ndarray
+
+
+def factored_layout(learn: tuple[str, ...] = ("spill",), truth: CoffeeParams | None = None) -> FactoredLayout:
+    """The layout of GeReL's per-factor belief: one Beta per learned factor, the rest of the world as it is.
+
+    ``mindgap.models.belief.factored(*factored_layout(learn, truth))`` builds the belief space.
 
     Args:
         learn: factors whose probability the belief learns (:data:`FACTORS`).
@@ -234,4 +252,4 @@ def factored_space(learn: tuple[str, ...] = ("spill",), truth: CoffeeParams | No
                 # a fixed pair: its true next state (0 and 1 are the two outcomes when stochastic)
                 p = 1.0 if name is None else getattr(truth, name)
                 targets[s, a] = nxt[0] if p == 1.0 else nxt[-1]
-    return factored(factor, targets, np.full(len(learn), 2))
+    return FactoredLayout(factor, targets, np.full(len(learn), 2))

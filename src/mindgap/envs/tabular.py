@@ -1,4 +1,4 @@
-"""Finite MDPs as JAX pytrees (dissertation §2.2.1).
+"""Finite MDPs as JAX pytrees (dissertation §2.2.1), and sampling trajectories in them.
 
 A :class:`TabularMDP` holds the dynamics as data, so a person's *belief* about the
 dynamics is simply another ``TabularMDP`` with other transitions (SPEC §3). All
@@ -8,8 +8,10 @@ arrays may carry extra leading batch axes; the planning functions in
 
 from __future__ import annotations
 
+from functools import partial
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -68,3 +70,33 @@ def check_transitions(transitions: np.ndarray, *, name: str = "transitions") -> 
         s, a = bad[0]
         raise ValueError(f"{name}[{s}, {a}, :] sums to {sums[s, a]:.6f}, not 1")
     return t.astype(np.float32)
+
+
+@partial(jax.jit, static_argnames=("n_episodes", "length"))
+def rollout(key, transitions, policy, initial, n_episodes: int, length: int):
+    """Sample ``n_episodes`` trajectories of ``length`` steps.
+
+    Args:
+        key: PRNG key.
+        transitions: ``[S, A, S]`` dynamics the trajectories follow.
+        policy: ``[S, A]`` action probabilities.
+        initial: ``[S]`` start distribution.
+        n_episodes, length: static sizes.
+
+    Returns:
+        ``(states, actions)``, each ``[n_episodes, length]`` int32: the state-action
+        pairs ``(s_t, a_t)`` of each demonstration.
+    """
+    k0, k_steps = jax.random.split(key)
+    s0 = jax.random.categorical(k0, jnp.log(initial), shape=(n_episodes,))
+    log_pi = jnp.log(policy)
+    log_t = jnp.log(transitions)
+
+    def step(s, k):
+        ka, ks = jax.random.split(k)
+        a = jax.random.categorical(ka, log_pi[s])
+        s_next = jax.random.categorical(ks, log_t[s, a])
+        return s_next, (s, a)
+
+    _, (states, actions) = jax.lax.scan(step, s0, jax.random.split(k_steps, length))
+    return states.T.astype(jnp.int32), actions.T.astype(jnp.int32)

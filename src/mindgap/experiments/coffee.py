@@ -31,15 +31,16 @@ from tqdm.auto import tqdm
 from .. import rng
 from .._io import atomic_write
 from ..algorithms.gerel import GeReLConfig, fit_gerel
-from ..envs.coffee import ACTIONS, N_STATES, ROBOTS, event_probability, factored_space, make_coffee
+from ..envs.coffee import ACTIONS, N_STATES, ROBOTS, event_probability, factored_layout, make_coffee
 from ..envs.coffee_demos import SANITY, Trace, study_traces, to_demonstrations, trace_text
 from ..envs.tabular import TabularMDP
 from ..feedback.demos import Demonstrations, RatedDemonstrations
 from ..feedback.normalise import normalise_ratings
 from ..feedback.ratings_file import ParticipantRatings, write_participant_ratings
-from ..models.belief import BeliefSpace, per_state_action
+from ..models.belief import BeliefSpace, factored, per_state_action
 from ..teachers.participants import POPULATIONS, QUESTIONS, Population, Response, recruit
 from ._runfolder import RunFolder, write_csv
+from .coffee_report import write_outputs
 
 METHODS = ("gerel", "gerel-minus")
 PARAMS = ("factored", "per-sa", "full")
@@ -116,7 +117,7 @@ def make_study(sanity_seed: int = 0) -> Study:
 def belief_space(mdp: TabularMDP, param: str) -> BeliefSpace:
     """GeReL's belief for the coffee world: ``factored`` (Beta over the spill probability), ``per-sa`` or ``full``."""
     if param == "factored":
-        return factored_space(("spill",))
+        return factored(*factored_layout(("spill",)))
     if param in ("per-sa", "full"):
         return per_state_action(mdp.transitions, full=param == "full")
     raise ValueError(f"unknown belief parameterisation {param!r} for coffee: use one of {', '.join(PARAMS)}")
@@ -214,8 +215,6 @@ def run(
     ``shard=(i, n)`` fits only every ``n``-th participant starting at ``i`` (processes
     sharing ``out``); a final call without it assembles the outputs.
     """
-    from .coffee_report import write_outputs
-
     if cfg.participants < 2:
         raise ValueError("participants must be at least 2 per robot type (the two-sample test needs them)")
     if sorted(p.robot for p in cfg.populations) != sorted(ROBOTS):
@@ -260,7 +259,10 @@ def run(
         return None
     if not records:
         raise RuntimeError(f"{out} has no finished fits to assemble")
-    summary = write_outputs(cfg, out, study, responses, records)
+    rows = result_rows(cfg, responses, records)
+    write_csv(out / "results.csv", rows, RESULT_COLUMNS)
+    write_study_files(cfg, out, study, responses)
+    summary = write_outputs(cfg, out, study, responses, rows)
     summary["missing_jobs"] = len(jobs) - len(records)
     return summary
 

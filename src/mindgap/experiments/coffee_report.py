@@ -14,7 +14,6 @@ from scipy import stats
 from .._io import atomic_write
 from ..envs.coffee import ROBOTS
 from ..plotting.coffee import save_demo_strip, save_learned_values, save_ratings_by_demo
-from ._runfolder import write_csv
 
 LABELS = {"gerel": "GeReL", "gerel-minus": "GeReL⁻"}
 QUESTION_TEXT = {"q1": "(Q1) Domain dynamics: spill with an umbrella", "q2": "(Q2) Weight preference: robot wet"}
@@ -127,9 +126,7 @@ def summarise(cfg, study, responses, rows) -> dict:
             "wet_weight": correlation([r["wet_weight_learned"] for r in rs], [r["wet_weight_true"] for r in rs]),
         }
         if method == "gerel":
-            correlations[name]["spill"] = correlation(
-                [r["spill_learned"] for r in rs], [r["spill_true"] for r in rs]
-            )
+            correlations[name]["spill"] = correlation([r["spill_learned"] for r in rs], [r["spill_true"] for r in rs])
     recruitment = {
         robot: {
             "recruited": len(rs),
@@ -173,7 +170,9 @@ def _f(x, fmt=".2f") -> str:
 
 def render_tables(s: dict) -> str:
     """Markdown: Table 2 analogue, learned values (Fig. 12 in numbers), correlations, recruitment."""
-    lines = [f"\nTable 2 (simulated): mean Likert answers of the valid participants ({s['participants_per_robot']} per robot)\n"]
+    lines = [
+        f"\nTable 2 (simulated): mean Likert answers of the valid participants ({s['participants_per_robot']} per robot)\n"
+    ]
     lines += ["| question | p (Welch t) | p (Mann–Whitney) | mobile | humanoid |", "|---|---|---|---|---|"]
     for q, e in s["table2"].items():
         lines.append(
@@ -228,14 +227,20 @@ def render_tables(s: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_outputs(cfg, out: Path, study, responses, records) -> dict:
-    """Write ``results.csv``, the study files, ``summary.json``, ``table.md`` and the figures."""
-    from .coffee import RESULT_COLUMNS, result_rows, write_study_files
+def write_outputs(cfg, out: Path, study, responses, rows: list[dict]) -> dict:
+    """Write ``summary.json``, ``table.md`` and the figures from the ``results.csv`` rows.
 
+    Args:
+        cfg: the study's configuration.
+        out: the run folder.
+        study: the demonstrations every participant saw (:class:`~mindgap.experiments.coffee.Study`).
+        responses: ``{robot: [response, …]}`` of every recruit.
+        rows: one row per fit, the participant's truth and answers joined in.
+
+    Returns:
+        The summary that ``summary.json`` holds (NaN there as null).
+    """
     out = Path(out)
-    rows = result_rows(cfg, responses, records)
-    write_csv(out / "results.csv", rows, RESULT_COLUMNS)
-    write_study_files(cfg, out, study, responses)
     summary = summarise(cfg, study, responses, rows)
     atomic_write(out / "summary.json", json.dumps(_nan_to_none(summary), indent=2))
     atomic_write(out / "table.md", summary["table_md"])

@@ -107,6 +107,13 @@ def _metrics(task: GridTask, w, t) -> dict:
     return all_metrics(task.mdp, jnp.asarray(w), jnp.asarray(t), task.true_weights, task.human_transitions)
 
 
+def prior_metrics(task: GridTask, param: str) -> dict:
+    """Metrics of an untrained fit: zero reward weights, the belief prior's mean transitions."""
+    space = belief_space(task, param)
+    prior_t = space.mean_transitions(jnp.ones(space.mask.shape))
+    return all_metrics(task.mdp, jnp.zeros(task.mdp.n_features), prior_t, task.true_weights, task.human_transitions)
+
+
 def fit_one(cfg: Table1Config, method: str, param: str, task, rated, policy_demos, key, progress=True):
     """Fit one method; returns ``(metrics row, curve rows, restart rows)``."""
     t0 = time.perf_counter()
@@ -274,5 +281,7 @@ def write_outputs(cfg: Table1Config, out: Path, records: list[dict]) -> dict:
     summary = summarise(cfg, rows, restart_rows, demo_rows)
     atomic_write(out / "summary.json", json.dumps(summary, indent=2))
     atomic_write(out / "table.md", summary["table_md"])
-    render_figures(cfg, out, rows, curve_rows, demo_rows)
+    tasks = {s: make_grid(cfg.size, s, seed=0) for s in cfg.settings}
+    priors = {(s, p): prior_metrics(tasks[s], p) for s in cfg.settings for p in cfg.belief_params}
+    render_figures(cfg, out, rows, curve_rows, demo_rows, tasks, priors)
     return summary

@@ -5,11 +5,8 @@ from __future__ import annotations
 from collections import defaultdict
 from pathlib import Path
 
-import jax.numpy as jnp
 import numpy as np
 
-from ..envs.grid import make_grid
-from ..metrics import all_metrics
 from ..plotting.curves import save_metric_curves
 from ..plotting.heatmaps import save_reward_panels
 
@@ -123,10 +120,21 @@ def _step_interp(x_grid, xs, ys):
     return np.asarray(ys)[np.clip(idx, 0, len(ys) - 1)]
 
 
-def render_figures(cfg, out: Path, rows, curve_rows, demo_rows) -> None:
+def render_figures(cfg, out: Path, rows, curve_rows, demo_rows, tasks: dict, priors: dict) -> None:
+    """Reward heatmaps, metric curves over iterations and over demonstration counts, per setting.
+
+    Args:
+        cfg: the experiment's configuration (settings, belief parameterisations).
+        out: the run folder.
+        rows: ``results.csv`` rows (``w`` the learned weights as text).
+        curve_rows: ``curves.csv`` rows, metrics per iteration.
+        demo_rows: ``demo_counts.csv`` rows.
+        tasks: ``{setting: GridTask}``, seed 0's grid of each setting (the reward heatmaps).
+        priors: ``{(setting, param): metrics}`` of the untrained fit (a line in the curves).
+    """
     out = Path(out)
     for s in cfg.settings:
-        task = make_grid(cfg.size, s, seed=0)
+        task = tasks[s]
         feats = np.asarray(task.mdp.features)
         panels = [("true R_H", feats @ np.asarray(task.true_weights))]
         for m in ORDER:
@@ -146,13 +154,6 @@ def render_figures(cfg, out: Path, rows, curve_rows, demo_rows) -> None:
         save_reward_panels(out / f"rewards_{s}.png", panels, cfg.size)
 
         for p in cfg.belief_params:
-            from .table1 import belief_space
-
-            space = belief_space(task, p)
-            prior_t = space.mean_transitions(jnp.ones(space.mask.shape))
-            prior = all_metrics(
-                task.mdp, jnp.zeros(task.mdp.n_features), prior_t, task.true_weights, task.human_transitions
-            )
             curves = {}
             for m in ORDER:
                 rs = [c for c in curve_rows if c["setting"] == s and c["belief_param"] == p and c["method"] == m]
@@ -173,7 +174,7 @@ def render_figures(cfg, out: Path, rows, curve_rows, demo_rows) -> None:
                     curves,
                     METRICS,
                     "iteration",
-                    prior=prior,
+                    prior=priors[(s, p)],
                     title=f"{s} belief, {p} parameterisation",
                 )
 

@@ -8,8 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..envs.tabular import TabularMDP
-from ..planning import rollout
+from ..envs.tabular import TabularMDP, rollout
 
 
 class Demonstrations(NamedTuple):

@@ -149,6 +149,8 @@ def factored(factor, targets, n_outcomes) -> BeliefSpace:
     outcome (a point mass, so it adds nothing to the ELBO and is never moved by a
     gradient). It is the last row of ``θ``.
 
+    :func:`mindgap.envs.coffee.factored_layout` gives these arguments for the coffee world.
+
     Args:
         factor: ``[S, A]`` int, the factor of each pair, or ``-1`` for a fixed pair.
         targets: ``[S, A, M]`` int, next state of each outcome (of the fixed next state

@@ -1,9 +1,8 @@
-"""Planning in tabular MDPs: value iteration, soft value iteration, policies, rollouts."""
+"""Planning in tabular MDPs: value iteration, soft value iteration, policies, state visitation."""
 
-from .rollouts import rollout as rollout
-from .rollouts import state_visitation as state_visitation
 from .value_iteration import boltzmann_policy as boltzmann_policy
 from .value_iteration import q_values as q_values
 from .value_iteration import soft_policy as soft_policy
 from .value_iteration import soft_q_values as soft_q_values
 from .value_iteration import state_values as state_values
+from .visitation import state_visitation as state_visitation

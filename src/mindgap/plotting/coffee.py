@@ -86,7 +86,9 @@ def save_demo_strip(path: Path, states, actions, robot: str, title: str = "") ->
     plt.close(fig)
 
 
-def save_learned_values(path: Path, groups: dict[str, dict[str, list[dict]]], truth: dict[str, dict[str, list]]) -> None:
+def save_learned_values(
+    path: Path, groups: dict[str, dict[str, list[dict]]], truth: dict[str, dict[str, list]]
+) -> None:
     """Fig. 12: learned coffee weight, wetness penalty, their ratio and spill probability per method and robot.
 
     Args:
@@ -120,7 +122,9 @@ def save_learned_values(path: Path, groups: dict[str, dict[str, list[dict]]], tr
                 if not len(vals):
                     continue
                 x = i + (j - (len(robots) - 1) / 2) * width
-                ax.bar(x, vals.mean(), width * 0.9, color=colours.get(robot), alpha=0.5, label=robot if i == 0 else None)
+                ax.bar(
+                    x, vals.mean(), width * 0.9, color=colours.get(robot), alpha=0.5, label=robot if i == 0 else None
+                )
                 ax.errorbar(x, vals.mean(), vals.std(), color="k", capsize=2, lw=0.8)
                 ax.scatter(np.full(len(vals), x), vals, s=6, color="k", zorder=3)
         ax.set_xticks(range(len(labels)))

@@ -14,31 +14,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.colors import to_rgb  # noqa: E402
 
-from ..envs.terrain.layout import FLOOR, GOAL, ICE, PIT, SAND, WALL  # noqa: E402
+from ..envs.terrain.gym_env import terrain_image  # noqa: E402
+from ..envs.terrain.layout import WALL  # noqa: E402
 
-COLOURS = {
-    WALL: "#4d4d4d",
-    FLOOR: "#f5f2ea",
-    ICE: "#a9d8f2",
-    PIT: "#7b4a26",
-    GOAL: "#5cb85c",
-}
-SAND_EASY, SAND_HARD = np.array(to_rgb("#d4a72c")), np.array(to_rgb("#f6e3a1"))
 METHOD_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
-
-
-def terrain_image(params) -> np.ndarray:
-    """[H, W, 3] RGB picture of the map; sand is darker the easier it is (as in Fig. 27)."""
-    grid = np.asarray(params.grid)
-    img = np.zeros(grid.shape + (3,))
-    for code, col in COLOURS.items():
-        img[grid == code] = to_rgb(col)
-    dyn = params.dynamics
-    ease = float(np.asarray(dyn.speed)[SAND] * (1 - np.asarray(dyn.stuck)[SAND]))
-    img[grid == SAND] = SAND_HARD + (SAND_EASY - SAND_HARD) * np.clip(ease, 0, 1)
-    return img
 
 
 def draw_world(ax, params, starts: bool = True) -> None:

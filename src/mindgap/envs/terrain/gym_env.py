@@ -3,6 +3,8 @@
 Each ``step`` calls one jitted JAX function (sample, reward, termination, observation in
 one dispatch). For many environments at once, use the functional API with ``jax.vmap``
 instead: it is orders of magnitude faster (see ``benchmarks/terrain_step.py``).
+:func:`terrain_image`, the picture of the map under the rendered frames, is also the
+map of :mod:`mindgap.plotting.terrain`'s figures.
 """
 
 from __future__ import annotations
@@ -10,11 +12,35 @@ from __future__ import annotations
 import gymnasium as gym
 import jax
 import numpy as np
+from matplotlib.colors import to_rgb
 
 from ... import rng
 from .files import load_world
+from .layout import FLOOR, GOAL, ICE, PIT, SAND, WALL
 from .params import TerrainParams
 from .world import TerrainWorld, observe, reset, step
+
+COLOURS = {
+    WALL: "#4d4d4d",
+    FLOOR: "#f5f2ea",
+    ICE: "#a9d8f2",
+    PIT: "#7b4a26",
+    GOAL: "#5cb85c",
+}
+"""Colour of each terrain code in the map picture; sand is shaded between ``SAND_EASY`` and ``SAND_HARD``."""
+SAND_EASY, SAND_HARD = np.array(to_rgb("#d4a72c")), np.array(to_rgb("#f6e3a1"))
+
+
+def terrain_image(params) -> np.ndarray:
+    """[H, W, 3] RGB picture of the map; sand is darker the easier it is (as in Fig. 27)."""
+    grid = np.asarray(params.grid)
+    img = np.zeros(grid.shape + (3,))
+    for code, col in COLOURS.items():
+        img[grid == code] = to_rgb(col)
+    dyn = params.dynamics
+    ease = float(np.asarray(dyn.speed)[SAND] * (1 - np.asarray(dyn.stuck)[SAND]))
+    img[grid == SAND] = SAND_HARD + (SAND_EASY - SAND_HARD) * np.clip(ease, 0, 1)
+    return img
 
 
 @jax.jit
@@ -82,8 +108,6 @@ class TerrainEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
-        from ...plotting.terrain import terrain_image
-
         k = 16
         img = np.repeat(np.repeat(terrain_image(self.params), k, 0), k, 1)
         x, y = np.asarray(self._state.pos) * k if self._state is not None else (-10, -10)
