@@ -26,8 +26,10 @@ CHUNK = 1000
 
 def steps_per_second(world, cfg: SACConfig, seeds: int, chunks: int) -> float:
     keys = jax.random.split(jax.random.key(0), seeds)
-    ls = jax.vmap(lambda k: loop_init(k, world.params, cfg, CHUNK * (chunks + 1)))(keys)
-    chunk = jax.jit(jax.vmap(lambda s: run_chunk(s, world.params, None, n_steps=CHUNK, cfg=cfg, phase="train")))
+    ls = jax.vmap(lambda k: loop_init(k, world.env, world.params, cfg, CHUNK * (chunks + 1)))(keys)
+    chunk = jax.jit(
+        jax.vmap(lambda s: run_chunk(s, world.env, world.params, None, n_steps=CHUNK, cfg=cfg, phase="train"))
+    )
     ls = jax.block_until_ready(chunk(ls))  # compile, and fill the buffer a little
     start = time.perf_counter()
     for _ in range(chunks):

@@ -53,7 +53,7 @@ import numpy as np
 from mindgap import rng
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
-from mindgap.envs.terrain import load_world
+from mindgap.envs.terrain import TERRAIN_ENV, load_world
 from mindgap.envs.terrain.gym_env import TerrainEnv
 from mindgap.models.mlp import mlp_flops
 
@@ -104,7 +104,7 @@ def matmul_gflops(batch: int, h: int, total_flops: float = 2e10, repeats: int = 
 
 @partial(jax.jit, static_argnames=("n_steps", "cfg", "phase"))
 def _run_seeds(ls, world_params, *, n_steps: int, cfg: SACConfig, phase: str):
-    return jax.vmap(lambda s: run_chunk(s, world_params, None, n_steps=n_steps, cfg=cfg, phase=phase))(ls)
+    return jax.vmap(lambda s: run_chunk(s, TERRAIN_ENV, world_params, None, n_steps=n_steps, cfg=cfg, phase=phase))(ls)
 
 
 def time_ours(world_params, cfg: SACConfig, n_seeds: int, chunk: int, chunks: int) -> float:
@@ -112,12 +112,12 @@ def time_ours(world_params, cfg: SACConfig, n_seeds: int, chunk: int, chunks: in
     capacity = cfg.learning_starts + chunk * (1 + chunks)
     keys = jax.random.split(rng.key(0), n_seeds)
     if n_seeds == 1:
-        ls = loop_init(keys[0], world_params, cfg, capacity)
+        ls = loop_init(keys[0], TERRAIN_ENV, world_params, cfg, capacity)
 
         def go(ls, n, phase):
-            return run_chunk(ls, world_params, None, n_steps=n, cfg=cfg, phase=phase)
+            return run_chunk(ls, TERRAIN_ENV, world_params, None, n_steps=n, cfg=cfg, phase=phase)
     else:
-        ls = jax.vmap(lambda k: loop_init(k, world_params, cfg, capacity))(keys)
+        ls = jax.vmap(lambda k: loop_init(k, TERRAIN_ENV, world_params, cfg, capacity))(keys)
 
         def go(ls, n, phase):
             return _run_seeds(ls, world_params, n_steps=n, cfg=cfg, phase=phase)

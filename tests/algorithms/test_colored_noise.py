@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from mindgap.algorithms.colored_noise import colored_noise
-from mindgap.algorithms.sac import SACConfig, sac_init, sample_action
+from mindgap.algorithms.sac import SACConfig, sac_init
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
 from mindgap.envs.terrain import world_from_dict
+from mindgap.models.actor import sample_action
 
 
 def _sequences(beta, length, n=3000):
@@ -70,8 +71,8 @@ def _random_phase_episodes(noise_color):
     """Actions of 600 random-phase steps, split into episodes."""
     world = world_from_dict(OPEN)
     cfg = SACConfig(hidden=(8,), noise_color=noise_color, noise_length=40)
-    ls = loop_init(jax.random.key(3), world.params, cfg, 600)
-    ls = run_chunk(ls, world.params, None, n_steps=600, cfg=cfg, phase="random")
+    ls = loop_init(jax.random.key(3), world.env, world.params, cfg, 600)
+    ls = run_chunk(ls, world.env, world.params, None, n_steps=600, cfg=cfg, phase="random")
     act, t = np.asarray(ls.replay.act), np.asarray(ls.replay.ep_step)
     assert np.all(np.abs(act) < 1.0)
     return np.split(act, np.flatnonzero(t == 0)[1:])
@@ -98,8 +99,8 @@ def test_the_loop_draws_one_sequence_per_episode():
 
 
 def test_the_state_entropy_bonus_is_centred_favours_rare_states_and_halves():
-    from mindgap.algorithms.sac import Batch
     from mindgap.algorithms.sac_loop import bonus_weight, novelty_bonus
+    from mindgap.data.batch import Batch
 
     crowd = jax.random.normal(jax.random.key(4), (200, 2)) * 0.05
     next_obs = jnp.concatenate([crowd[:63], jnp.array([[0.9, 0.9]])])  # one state far from the others

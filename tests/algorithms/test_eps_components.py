@@ -1,5 +1,7 @@
 """EPS's parts with known answers: H_T, the reshaped reward (Eq. 4.6), the explicability score (Eq. 4.4), policy shaping."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -17,9 +19,9 @@ from mindgap.algorithms.explicability import explicability
 from mindgap.algorithms.policy_shaping import ShapedPolicy, gaussian_product, shaped_dist, shaped_sample
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
+from mindgap.data.replay import replay_add, replay_init
 from mindgap.envs.terrain import load_world, observe, world_from_dict
 from mindgap.envs.terrain.params import TerrainState
-from mindgap.feedback.replay import replay_add, replay_init
 from mindgap.models.agent_dynamics import dynamics_entropy, gaussian_entropy
 from mindgap.models.gaussian_dynamics import DynamicsModel, Norm
 from mindgap.models.squashed import squashed_log_prob
@@ -98,14 +100,14 @@ def test_reshaped_reward_on_hand_made_transitions(d1):
     h_t = np.sum(0.5 * np.log(2 * np.pi * np.e) + np.log(sigma_obs * cells))
 
     params = eps_reward_params(
-        d1.params, u_params, constant_dynamics([-1.0, -1.0], min_std), lam, min_std=min_std, u_norm=(u_mean, u_std)
+        d1, u_params, constant_dynamics([-1.0, -1.0], min_std), lam, min_std=min_std, u_norm=(u_mean, u_std)
     )
     expect = r_a + lam * ((u_raw - u_mean) / u_std + h_t)
     reward_fn = jax.jit(eps_reward)
     np.testing.assert_allclose(reward_fn(params, obs, act, nxt), expect, rtol=1e-5)
-    centred = params._replace(h_shift=jnp.float32(h_t))
+    centred = dataclasses.replace(params, h_shift=jnp.float32(h_t))
     np.testing.assert_allclose(reward_fn(centred, obs, act, nxt), r_a + lam * (u_raw - u_mean) / u_std, rtol=1e-5)
-    plain = params._replace(lam=jnp.float32(0.0))
+    plain = dataclasses.replace(params, lam=jnp.float32(0.0))
     np.testing.assert_allclose(reward_fn(plain, obs, act, nxt), r_a, rtol=1e-6)
 
 
@@ -117,29 +119,29 @@ def test_normalisation_statistics_come_from_the_filled_buffer(d1):
     u_params = _linear_u([1.0, 1.0], [0.0, 0.0])
     mean, std = u_norm_from_replay(u_params, buf)
     np.testing.assert_allclose([float(mean), float(std)], [np.tanh(xs).mean(), np.tanh(xs).std()], atol=1e-6)
-    params = eps_reward_params(d1.params, u_params, constant_dynamics([0.0, 0.0], 0.01), 1.0, min_std=0.01)
+    params = eps_reward_params(d1, u_params, constant_dynamics([0.0, 0.0], 0.01), 1.0, min_std=0.01)
     h = 2 * (0.5 * np.log(2 * np.pi * np.e) + np.log((0.01 + np.log(2)) * 3.5))
     np.testing.assert_allclose(float(entropy_mean_from_replay(params, buf)), h, rtol=1e-5)
 
 
 def test_the_reshaped_reward_plugs_into_the_sac_loop(d1, key):
     cfg = SACConfig(hidden=(8,), batch_size=8, learning_starts=0)
-    ls = jax.jit(loop_init, static_argnums=(2, 3))(key, d1.params, cfg, 64)
+    ls = jax.jit(loop_init, static_argnums=(1, 3, 4))(key, d1.env, d1.params, cfg, 64)
     params = eps_reward_params(
-        d1.params,
+        d1,
         _linear_u([1.0, -2.0], [0.1, 0.0]),
         constant_dynamics([0.3, -0.2], 0.01),
         2.0,
         min_std=0.01,
         u_norm=(0.1, 0.7),
     )
-    ls = run_chunk(ls, d1.params, params, n_steps=20, cfg=cfg, phase="random", reward_fn=eps_reward)
+    ls = run_chunk(ls, d1.env, d1.params, params, n_steps=20, cfg=cfg, phase="random", reward_fn=eps_reward)
     r = ls.replay
     n = int(r.size)
     reward_fn = jax.jit(eps_reward)
     np.testing.assert_allclose(r.reward[:n], reward_fn(params, r.obs[:n], r.act[:n], r.next_obs[:n]), rtol=1e-5)
     # the world's own reward is r_A: λ = 0 gives it back
-    r_a = reward_fn(params._replace(lam=jnp.float32(0)), r.obs[:n], r.act[:n], r.next_obs[:n])
+    r_a = reward_fn(dataclasses.replace(params, lam=jnp.float32(0)), r.obs[:n], r.act[:n], r.next_obs[:n])
     np.testing.assert_allclose(r_a, r.env_reward[:n], atol=1e-4)
 
 
@@ -237,7 +239,7 @@ def test_explicability_matches_the_exact_kl_on_a_two_step_world(key):
             lambda z0, e, z1, m_th=m_th, s_th=s_th, x1=x1: kl_t(np.tanh(m_th(x1(z0, e)) + s_th * z1)), 3, n=24
         )
 
-    est = explicability(key, world.params, world.belief(), agent, person, episodes=EPISODES)
+    est = explicability(key, world, world.belief(), agent, person, episodes=EPISODES)
     assert abs(float(est.score) + total) < 4 * float(est.stderr), (float(est.score), -total, float(est.stderr))
     assert float(est.stderr) < 0.02 * total
     np.testing.assert_allclose(float(est.dynamics + est.policy), -float(est.score), rtol=1e-5)
@@ -247,11 +249,9 @@ def test_explicability_matches_the_exact_kl_on_a_two_step_world(key):
 def test_explicability_is_zero_when_the_agent_is_what_the_person_expects(key):
     world = _room(1.0, 0.05, 0.6, 0.2, horizon=2)  # the shapes of the test above: its compiled program
     actor = linear_actor(np.array([0.5, 0.5]), np.array([0.2, 0.0]), np.array([-1.0, -1.0]))
-    est = explicability(key, world.params, world.params, actor, actor, episodes=EPISODES)
+    est = explicability(key, world, world.params, actor, actor, episodes=EPISODES)
     np.testing.assert_array_equal(np.asarray(est.per_episode), 0.0)
-    biased = explicability(
-        key, world.params, world.belief(), actor, actor, episodes=EPISODES
-    )  # the belief alone differs
+    biased = explicability(key, world, world.belief(), actor, actor, episodes=EPISODES)  # the belief alone differs
     assert float(biased.score) < 0 and float(biased.policy) == 0.0
 
 

@@ -9,6 +9,7 @@ import pytest
 
 from mindgap.algorithms import eps
 from mindgap.algorithms.eps import EPSConfig, eps_config
+from mindgap.algorithms.eps_maps import surrogate_maps
 from mindgap.algorithms.eps_reward import environment_entropy, eps_reward
 from mindgap.algorithms.sac import SACConfig, sac_init
 from mindgap.cli import main
@@ -50,11 +51,12 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
     # ("eps", False, "learned") is the CLI test's round
     cfg = eps_config("fast", method=method, centre_entropy=centre, surrogate=surrogate)
     # an untrained actor stands in for π_H: the round's bookkeeping does not depend on its quality
-    person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor)
-    carry = eps._init(jax.random.split(key, 2), world.params, cfg)
-    carry = eps._chunk(carry, world.params, person, cfg, "random")
+    person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor, world.env)
+    carry = eps._init(jax.random.split(key, 2), world.env, world.params, cfg)
+    w = eps.WorldArgs(world.params, world.obs_units())
+    carry = eps._chunk(carry, world.env, w, person, cfg, "random")
     before = np.asarray(carry.loop.replay.reward)
-    carry, _ = eps._feedback(carry, world.params, person, cfg, cfg.teacher)
+    carry, _ = eps._feedback(carry, world.env, w, person, cfg, cfg.teacher)
     assert np.asarray(carry.queries).tolist() == [cfg.per_round] * 2  # the round's budget, asked or not
     asked = np.asarray(carry.prefs.count).tolist()
     assert asked == ([0, 0] if surrogate == "exact" else [cfg.per_round] * 2)
@@ -62,7 +64,7 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
         c = jax.tree.map(lambda a: a[s], carry)
         buf = c.loop.replay
         n = int(buf.size)
-        params = eps._reward_params(world.params, c, person, cfg)
+        params = eps._reward_params(world.env, w, c, person, cfg)
         fn = eps_reward if method == "eps" else eps.expectation_reward
         want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
         np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
@@ -82,7 +84,7 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
             assert float(jnp.std(buf.reward[:n])) == pytest.approx(1.0, abs=1e-2)
 
     if surrogate == "exact" and method == "eps":  # Fig. 28's map draws the person's score, not the idle ensemble
-        maps = np.asarray(eps.surrogate_maps(carry, world.params, person, cfg, k=2))
+        maps = np.asarray(surrogate_maps(carry, world.params, person, cfg, k=2))
         h, w = world.params.grid.shape
         assert maps.shape == (2, 2 * h, 2 * w)
         (m0, s0), (m1, s1) = np.asarray(carry.u_norm)

@@ -12,9 +12,9 @@ from mindgap.algorithms import pbrl
 from mindgap.algorithms.pbrl import FAST_SCHEDULE, PbRLConfig, method_config, train
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
+from mindgap.data.replay import relabel, replay_add, replay_init, terminal_bonus
+from mindgap.data.segments import AbsorbingSegments, Segments
 from mindgap.envs.terrain import world_from_dict
-from mindgap.feedback.replay import relabel, replay_add, replay_init, terminal_bonus
-from mindgap.feedback.segments import AbsorbingSegments, Segments
 from mindgap.models.reward_ensemble import (
     AbsorbingParams,
     RewardConfig,
@@ -97,10 +97,10 @@ def test_run_chunk_stores_the_bonus_on_terminal_transitions(key):
     cfg = SACConfig(hidden=(8,), batch_size=8, gamma=GAMMA)
     rs = reward_init(key, 2, 2, RewardConfig(members=2, hidden=(8,)), absorbing="single")
     params = rs.params._replace(absorb=jnp.array([[0.6], [0.2]]))
-    ls = loop_init(key, world.params, cfg, 300)
+    ls = loop_init(key, world.env, world.params, cfg, 300)
     kw = dict(n_steps=300, cfg=cfg, phase="random", reward_fn=ensemble_reward)
-    with_bonus = run_chunk(ls, world.params, params, absorbing_fn=absorbing_reward, **kw).replay
-    without = run_chunk(ls, world.params, params, **kw).replay
+    with_bonus = run_chunk(ls, world.env, world.params, params, absorbing_fn=absorbing_reward, **kw).replay
+    without = run_chunk(ls, world.env, world.params, params, **kw).replay
     terminal = np.asarray(with_bonus.terminal)
     assert terminal.sum() >= 5 and (~terminal).sum() >= 5  # goals reached and horizons hit
     truncated = np.asarray(with_bonus.ep_step) == NEXT_TO_GOAL["horizon"] - 1

@@ -18,9 +18,10 @@ from mindgap.algorithms.prefbias_inference import (
     preference_prob,
     with_dynamics,
 )
+from mindgap.data.prefs import PrefData
+from mindgap.data.segments import AbsorbingSegments, Segments
 from mindgap.envs.terrain import TerrainState, load_world, observe, step
 from mindgap.envs.terrain.layout import FLOOR, ICE, SAND
-from mindgap.feedback.segments import AbsorbingSegments, Segments
 from mindgap.models.bayes import init_gaussian
 from mindgap.models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes, train_dynamics
 from mindgap.models.mlp import init_mlp
@@ -28,11 +29,9 @@ from mindgap.models.prefbias_nets import (
     REWARD_BOUND,
     RewardWeights,
     absorbing_value,
-    belief_noise_map,
     reward_sizes,
-    table_noise_map,
 )
-from mindgap.models.reward_ensemble import PrefData
+from mindgap.planning.terrain_maps import belief_noise_map, table_noise_map
 from mindgap.teachers.preference import TeacherConfig, answer
 
 PLAIN = dict(absorbing=False, stay_head=False)

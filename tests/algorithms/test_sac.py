@@ -6,7 +6,9 @@ import numpy as np
 import optax
 import pytest
 
-from mindgap.algorithms.sac import Batch, SACConfig, sac_init, sac_losses, sac_update, sample_action
+from mindgap.algorithms.sac import SACConfig, sac_init, sac_losses, sac_update
+from mindgap.data.batch import Batch
+from mindgap.models.actor import sample_action
 
 
 def _net(params, x):

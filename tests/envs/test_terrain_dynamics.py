@@ -172,10 +172,9 @@ def test_bump_worlds_keep_the_fingerprint_they_had_before_the_slide_rule():
     """Run folders and the expected-policy cache are keyed by a hash of the world's arrays: the
     ``slide`` flag is left out of it when 0, so bump worlds hash as before the rule existed
     (the hash nav2's run folders recorded then), and a slide world hashes differently."""
-    from mindgap.algorithms.pbrl import fingerprint
+    from mindgap.algorithms.expected_policy import ExpectedPolicyConfig, cache_key
+    from mindgap.data.fingerprint import fingerprint, identity_leaves
     from mindgap.envs.terrain import load_world
-    from mindgap.envs.terrain.params import identity_leaves
-    from mindgap.teachers.expected_policy import ExpectedPolicyConfig, cache_key
 
     world = load_world("nav2")
     tree = (world.params, world.beliefs)

@@ -17,13 +17,13 @@ import pytest
 
 from mindgap import rng
 from mindgap.algorithms.eps import explicability_scores
+from mindgap.algorithms.expected_policy import ExpectedPolicyConfig
 from mindgap.algorithms.policy_shaping import ShapedPolicy, shaped_dist
 from mindgap.algorithms.sac import SACConfig, sac_init
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
 from mindgap.experiments import eps_common as ec
 from mindgap.teachers.expectation import ExpectationTeacher
-from mindgap.teachers.expected_policy import ExpectedPolicyConfig
 
 GREEDY = {"eps": 90.0, "sac": 100.0, "drlhp": -100.0}
 
@@ -95,7 +95,7 @@ def stand_ins(monkeypatch):
     def fake_person(world, belief=None, *, unbiased=False, policy_cfg=None, cache_dir=None):
         params = world.params if unbiased else world.belief(belief)
         actor = jax.tree.map(lambda a: a[0], _actors(f"person-{unbiased}", 1, policy_cfg.sac.hidden))
-        return ExpectationTeacher(params, actor)
+        return ExpectationTeacher(params, actor, world.env)
 
     monkeypatch.setattr(ec, "train", fake_train)
     monkeypatch.setattr(ec, "expectation_teacher", fake_person)
@@ -129,11 +129,11 @@ def test_eps_fast_tables_figures_shaping_and_resume(stand_ins, tmp_path, capsys)
     world = load_world("d3")
     person = ec.expectation_teacher(world, policy_cfg=ExpectedPolicyConfig.fast())
     rec = json.loads((out / "jobs" / "d3__eps-lam2.json").read_text())
-    want = explicability_scores(rng.key(20_000), world.params, person, actors["d3/eps-lam2"], 10)
+    want = explicability_scores(rng.key(20_000), world, person, actors["d3/eps-lam2"], 10)
     assert rec["explicability"] == pytest.approx([s["score"] for s in want], rel=1e-5)
     ones = np.ones(1, np.float32)
     shaped = ShapedPolicy(actors["d3/sac"], actors["d3/drlhp"], ones, ones)
-    want = explicability_scores(rng.key(20_000), world.params, person, shaped, 10, agent_dist=shaped_dist)
+    want = explicability_scores(rng.key(20_000), world, person, shaped, 10, agent_dist=shaped_dist)
     rec = json.loads((out / "jobs" / "d3__shaping.json").read_text())
     assert rec["explicability"] == pytest.approx([s["score"] for s in want], rel=1e-5)
     assert rec["return"] == pytest.approx([s["stochastic_return"] for s in want], rel=1e-5)

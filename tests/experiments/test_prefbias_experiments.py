@@ -25,7 +25,8 @@ from mindgap.cli import main
 from mindgap.envs.terrain import load_world
 from mindgap.experiments import prefbias_common as pc
 from mindgap.models.mlp import init_mlp, init_stack
-from mindgap.models.prefbias_nets import reward_sizes, table_noise_map
+from mindgap.models.prefbias_nets import reward_sizes
+from mindgap.planning.terrain_maps import table_noise_map
 
 FINAL = {"prefbias": -5.0, "pebble": -90.0, "sac": -1.0}
 RANDOM = -100.0
@@ -112,6 +113,7 @@ def stand_ins(monkeypatch):
     monkeypatch.setattr(prefbias, "train", fake_prefbias)
     monkeypatch.setattr(pbrl, "train", fake_pbrl)
     monkeypatch.setattr(pc, "_reference", fake_reference)
+    monkeypatch.setattr(pc, "learned_noise", lambda res, world, cfg: (res["belief_noise"], res["dynamics_noise"]))
     return calls
 
 

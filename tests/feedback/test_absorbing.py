@@ -7,20 +7,20 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.envs.terrain import load_world, observe, step
-from mindgap.envs.terrain.params import TerrainState
-from mindgap.feedback.replay import replay_add, replay_init
-from mindgap.feedback.segments import (
+from mindgap.data.replay import replay_add, replay_init
+from mindgap.data.segments import (
     AbsorbingSegments,
     Segments,
     absorbed_steps,
     sample_segments,
     with_absorbing,
 )
+from mindgap.envs.terrain import load_world, observe, step
+from mindgap.envs.terrain.params import TerrainState
 from mindgap.teachers.preference import TeacherConfig
 from mindgap.teachers.preference import segment_scores as _segment_scores
 
-segment_scores = jax.jit(_segment_scores, static_argnames="cfg")
+segment_scores = jax.jit(_segment_scores, static_argnames=("env", "cfg"))
 
 # slot:      0  1  2 | 3  4  5  6 | 7  8  9 (newest; 10.. empty)
 EP_STEP = [0, 1, 2, 0, 1, 2, 3, 0, 1, 2]
@@ -132,12 +132,14 @@ def test_the_person_scores_absorbing_steps_as_zero(d1):
     seg, rewards = _into_goal(d1)
     plain = with_absorbing(seg, False)
     for belief, cfg in ((None, TeacherConfig(use_belief=False)), (d1.belief(), TeacherConfig())):
-        got = float(segment_scores(seg, d1.params, belief, cfg)[0])
-        assert got == float(segment_scores(plain, d1.params, belief, cfg)[0])  # absorbed steps add nothing
+        got = float(segment_scores(seg, d1.env, d1.params, belief, cfg)[0])
+        assert got == float(segment_scores(plain, d1.env, d1.params, belief, cfg)[0])  # absorbed steps add nothing
         counted = with_absorbing(seg._replace(mask=jnp.ones_like(seg.mask)), False)
-        assert float(segment_scores(counted, d1.params, belief, cfg)[0]) > got + 100  # they would, if counted
+        assert float(segment_scores(counted, d1.env, d1.params, belief, cfg)[0]) > got + 100  # they would, if counted
     plain_cfg = TeacherConfig(use_belief=False)
-    np.testing.assert_allclose(float(segment_scores(seg, d1.params, None, plain_cfg)[0]), sum(rewards), rtol=1e-5)
+    np.testing.assert_allclose(
+        float(segment_scores(seg, d1.env, d1.params, None, plain_cfg)[0]), sum(rewards), rtol=1e-5
+    )
     myopic = dataclasses.replace(plain_cfg, gamma=0.5)  # step t of L counts γ^(L−1−t); absorbed ones still 0
     expect = 0.5**4 * rewards[0] + 0.5**3 * rewards[1]
-    np.testing.assert_allclose(float(segment_scores(seg, d1.params, None, myopic)[0]), expect, rtol=1e-5)
+    np.testing.assert_allclose(float(segment_scores(seg, d1.env, d1.params, None, myopic)[0]), expect, rtol=1e-5)

@@ -4,8 +4,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mindgap.feedback.replay import relabel, replay_add, replay_init, replay_sample
-from mindgap.feedback.segments import sample_segments
+from mindgap.data.replay import relabel, replay_add, replay_init, replay_sample
+from mindgap.data.segments import sample_segments
 
 
 def _filled(n=10, capacity=16, episode=4, terminal_at=()):

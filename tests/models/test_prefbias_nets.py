@@ -4,9 +4,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mindgap.data.replay import relabel, replay_add, replay_init
 from mindgap.envs.terrain import load_world
 from mindgap.envs.terrain.layout import FLOOR, ICE, PIT, SAND, WALL
-from mindgap.feedback.replay import relabel, replay_add, replay_init
 from mindgap.models.bayes import Gaussian, init_gaussian, sample_params
 from mindgap.models.gaussian_dynamics import Norm, dynamics_sizes
 from mindgap.models.mlp import init_mlp
@@ -14,14 +14,13 @@ from mindgap.models.prefbias_nets import (
     REWARD_BOUND,
     absorbing_local,
     absorbing_value,
-    belief_noise_map,
     belief_predict,
     posterior_reward,
     reward_sizes,
     reward_value,
     reward_weights_init,
-    table_noise_map,
 )
+from mindgap.planning.terrain_maps import belief_noise_map, table_noise_map
 
 
 def test_reward_is_soft_bounded(key):

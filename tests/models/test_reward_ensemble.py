@@ -5,8 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from mindgap.data.prefs import prefs_add, prefs_init
+from mindgap.data.segments import AbsorbingSegments, Segments, with_absorbing
 from mindgap.feedback.queries import query_scores
-from mindgap.feedback.segments import AbsorbingSegments, Segments, with_absorbing
 from mindgap.models.reward_ensemble import (
     RBF_GAIN,
     RBF_PER_AXIS,
@@ -16,8 +17,6 @@ from mindgap.models.reward_ensemble import (
     absorbing_reward,
     bt_loss,
     ensemble_reward,
-    prefs_add,
-    prefs_init,
     reward_init,
     segment_returns,
     train_reward,

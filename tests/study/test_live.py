@@ -10,8 +10,8 @@ from fastapi.testclient import TestClient
 from study_helpers import Participant, study_file
 
 from mindgap.algorithms.pbrl import FAST_SCHEDULE, method_config, train
+from mindgap.data.segments import Segments
 from mindgap.envs.terrain import load_world, world_from_dict
-from mindgap.feedback.segments import Segments
 from mindgap.models.reward_ensemble import RewardConfig
 from mindgap.study.app import create_app
 from mindgap.study.items import random_segments, true_returns
@@ -153,7 +153,7 @@ def test_the_host_path_gives_the_jitted_path_s_results(tmp_path):
     world = world_from_dict(__import__("tomllib").loads(EASY))
     cfg = method_config("pebble", **{**TINY, "teacher": TeacherConfig()})
     jitted = train(world, cfg, seeds=2, teacher="true", progress=False)
-    host = SimulatedHostTeacher(world.params, None, TeacherConfig(use_belief=False), key=jax.random.key(0))
+    host = SimulatedHostTeacher(world.env, world.params, None, TeacherConfig(use_belief=False), key=jax.random.key(0))
     hosted = train(world, cfg, seeds=2, teacher=host, progress=False)
     assert host.calls == 2
     np.testing.assert_allclose(np.asarray(hosted["curve"]), np.asarray(jitted["curve"]), rtol=1e-5, atol=1e-5)

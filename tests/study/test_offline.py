@@ -89,7 +89,7 @@ def test_a_reward_learned_offline_ranks_unseen_segments_as_the_world_does(record
     true = true_returns(world.params, a) - true_returns(world.params, b)
 
     def learned(s):
-        from mindgap.feedback.segments import Segments
+        from mindgap.data.segments import Segments
 
         return np.asarray(segment_returns(params, Segments(*(s[k] for k in ("obs", "act", "next_obs", "mask"))))).mean(
             0

@@ -7,13 +7,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.algorithms.sac import sample_action
+from mindgap.algorithms import expected_policy as ep
+from mindgap.algorithms.expected_policy import expectation_teacher
+from mindgap.data.segments import Segments
 from mindgap.envs.terrain import load_world, observe, position
 from mindgap.envs.terrain.params import TerrainState
-from mindgap.feedback.segments import Segments
+from mindgap.models.actor import sample_action
 from mindgap.models.squashed import squashed_log_prob
-from mindgap.teachers import expected_policy as ep
-from mindgap.teachers.expectation import ExpectationTeacher, answer, expectation_teacher, segment_scores
+from mindgap.teachers.expectation import ExpectationTeacher, answer, expected_log_prob, segment_scores
 from mindgap.teachers.preference import TeacherConfig, labels_from_scores
 
 
@@ -77,7 +78,7 @@ def _log_pi_by_hand(a, mean, log_std):
 
 
 def test_score_is_the_sum_of_log_t_and_log_pi_under_the_mask(d1):
-    teacher = ExpectationTeacher(d1.belief(), linear_actor([1.0, 0.0], -1.0))
+    teacher = ExpectationTeacher(d1.belief(), linear_actor([1.0, 0.0], -1.0), d1.env)
     actions = np.array([(0.8, 0.2), (0.9, 0.0), (0.95, -0.2)])
     positions = [np.array([1.5, 4.5])]
     for a, off in zip(actions, [(0.03, -0.02), (-0.01, 0.04), (0.0, 0.05)]):
@@ -98,7 +99,7 @@ def test_score_is_the_sum_of_log_t_and_log_pi_under_the_mask(d1):
 
 
 def test_the_person_prefers_what_their_policy_would_do_and_the_knobs_apply(d1):
-    teacher = ExpectationTeacher(d1.belief(), linear_actor([1.0, 0.0], -1.0))  # expects pushes to the right
+    teacher = ExpectationTeacher(d1.belief(), linear_actor([1.0, 0.0], -1.0), d1.env)  # expects pushes to the right
     start = np.array([2.5, 3.5])
     right, left = np.array([0.76, 0.0]), np.array([-0.76, 0.0])
     seg_r = _tile(_segment(d1, [start + 0.38 * t * right / 0.76 for t in range(4)], [right] * 3), K // 2)
@@ -118,9 +119,9 @@ def test_the_person_prefers_what_their_policy_would_do_and_the_knobs_apply(d1):
 
 
 def _fake_trainer(calls):
-    def train(belief_params, cfg):
+    def train(world, belief_params, cfg):
         calls.append(ep.cache_key(belief_params, cfg))
-        actor = jax.tree.map(lambda x: x + len(calls), ep._actor_template(cfg))
+        actor = jax.tree.map(lambda x: x + len(calls), ep._actor_template(world.env, cfg))
         return actor, np.zeros(cfg.seeds)
 
     return train
@@ -130,32 +131,32 @@ def test_the_cache_trains_once_per_world_and_belief(d1, tmp_path, monkeypatch):
     calls = []
     monkeypatch.setattr(ep, "train_expected_policy", _fake_trainer(calls))
     cfg = ep.ExpectedPolicyConfig.fast()
-    first = ep.expected_policy(d1.belief(), cfg, cache_dir=tmp_path)
-    again = ep.expected_policy(d1.belief(), cfg, cache_dir=tmp_path)
+    first = ep.expected_policy(d1, d1.belief(), cfg, cache_dir=tmp_path)
+    again = ep.expected_policy(d1, d1.belief(), cfg, cache_dir=tmp_path)
     assert len(calls) == 1  # the second call read the file
     jax.tree.map(np.testing.assert_array_equal, first, again)
     assert (tmp_path / "expected_policy" / f"{calls[0]}.npz").exists()
     teacher = expectation_teacher(d1, cache_dir=tmp_path, policy_cfg=cfg)  # the same person through the teacher
     assert len(calls) == 1
     jax.tree.map(np.testing.assert_array_equal, teacher.policy, first)
-    ep.expected_policy(d1.params, cfg, cache_dir=tmp_path)  # a person without bias: another key
-    ep.expected_policy(d1.belief(), dataclasses.replace(cfg, seed=1), cache_dir=tmp_path)  # another configuration
+    ep.expected_policy(d1, d1.params, cfg, cache_dir=tmp_path)  # a person without bias: another key
+    ep.expected_policy(d1, d1.belief(), dataclasses.replace(cfg, seed=1), cache_dir=tmp_path)  # another configuration
     other = load_world("d2")
-    ep.expected_policy(other.belief(), cfg, cache_dir=tmp_path)  # another world
+    ep.expected_policy(other, other.belief(), cfg, cache_dir=tmp_path)  # another world
     assert len(calls) == 4 and len(set(calls)) == 4
     monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path))
-    ep.expected_policy(d1.belief(), cfg)  # $MINDGAP_CACHE is the default root
+    ep.expected_policy(d1, d1.belief(), cfg)  # $MINDGAP_CACHE is the default root
     assert len(calls) == 4
 
 
 def test_default_trainer_runs_and_its_policy_is_stored(d1, tmp_path):
     cfg = ep.ExpectedPolicyConfig.fast()
-    actor = ep.expected_policy(d1.belief(), cfg, cache_dir=tmp_path)
+    actor = ep.expected_policy(d1, d1.belief(), cfg, cache_dir=tmp_path)
     assert [w.shape for w, _ in actor] == [(2, 8), (8, 4)]  # obs → hidden → (mean, log std)
     assert all(np.all(np.isfinite(np.asarray(x))) for x in jax.tree.leaves(actor))
     with np.load(next((tmp_path / "expected_policy").glob("*.npz"))) as f:
         assert f["extra_returns"].shape == (cfg.seeds,)
-    again = ep.expected_policy(d1.belief(), cfg, cache_dir=tmp_path)
+    again = ep.expected_policy(d1, d1.belief(), cfg, cache_dir=tmp_path)
     jax.tree.map(np.testing.assert_array_equal, actor, again)
     obs = jnp.zeros((3, 2))
-    assert np.all(np.isfinite(np.asarray(ep.expected_log_prob(actor, obs, jnp.full((3, 2), 0.5)))))
+    assert np.all(np.isfinite(np.asarray(expected_log_prob(actor, obs, jnp.full((3, 2), 0.5)))))

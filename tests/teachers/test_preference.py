@@ -7,9 +7,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from mindgap.data.segments import Segments
 from mindgap.envs.terrain import load_world, observe
 from mindgap.envs.terrain.params import TerrainState
-from mindgap.feedback.segments import Segments
 from mindgap.teachers.preference import TeacherConfig, answer, segment_scores
 
 
@@ -45,12 +45,12 @@ def test_biased_person_prefers_sand_the_plain_teacher_does_not_care(nav1):
     ice = _segments(nav1, [(11.5, 1.5)] * 8, [-1.0, 0.0], key=jax.random.key(1))
     sand = _segments(nav1, [(11.5, 4.5)] * 8, [-1.0, 0.0], key=jax.random.key(2))
     cfg = TeacherConfig()
-    s_ice = segment_scores(ice, nav1.params, nav1.belief(), cfg)
-    s_sand = segment_scores(sand, nav1.params, nav1.belief(), cfg)
+    s_ice = segment_scores(ice, nav1.env, nav1.params, nav1.belief(), cfg)
+    s_sand = segment_scores(sand, nav1.env, nav1.params, nav1.belief(), cfg)
     assert float(s_sand.mean()) > float(s_ice.mean()) + 2  # log T_H: real ice moves look unlikely to the person
     plain = TeacherConfig(use_belief=False)
-    np.testing.assert_allclose(segment_scores(ice, nav1.params, None, plain), -6.0)  # r_H only: −1 per step
-    labels, answered = answer(jax.random.key(0), ice, sand, nav1.params, None, plain)
+    np.testing.assert_allclose(segment_scores(ice, nav1.env, nav1.params, None, plain), -6.0)  # r_H only: −1 per step
+    labels, answered = answer(jax.random.key(0), ice, sand, nav1.env, nav1.params, None, plain)
     assert np.all(np.asarray(labels) == 0.5) and bool(answered.all())  # equal returns: a tie
 
 
@@ -67,9 +67,11 @@ def _pairs(nav1, n=400):
 
 def test_mistake_rate_flips_about_that_share(nav1):
     a, b = _pairs(nav1)
-    clean, _ = answer(jax.random.key(0), a, b, nav1.params, None, TeacherConfig(use_belief=False))
+    clean, _ = answer(jax.random.key(0), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False))
     assert np.all(np.asarray(clean) == 1.0)
-    noisy, _ = answer(jax.random.key(3), a, b, nav1.params, None, TeacherConfig(use_belief=False, mistake=0.1))
+    noisy, _ = answer(
+        jax.random.key(3), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, mistake=0.1)
+    )
     flipped = float(np.mean(np.asarray(noisy) == 0.0))
     assert 0.07 < flipped < 0.13  # 400 answers: ±3 standard deviations around 0.1
 
@@ -77,11 +79,13 @@ def test_mistake_rate_flips_about_that_share(nav1):
 def test_rationality_equal_skip_and_myopia(nav1):
     a, b = _pairs(nav1)
     cfg = TeacherConfig(use_belief=False, beta=1.0)  # σ(1 · 2) ≈ 0.88 for a return gap of 2
-    labels, _ = answer(jax.random.key(4), a, b, nav1.params, None, cfg)
+    labels, _ = answer(jax.random.key(4), a, b, nav1.env, nav1.params, None, cfg)
     assert 0.82 < float(np.mean(np.asarray(labels))) < 0.94
-    eq, _ = answer(jax.random.key(4), a, b, nav1.params, None, TeacherConfig(use_belief=False, equal=0.9))
+    eq, _ = answer(jax.random.key(4), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, equal=0.9))
     assert np.all(np.asarray(eq) == 0.5)  # |−1 − (−3)| = 2 < 0.9 · 3
-    _, answered = answer(jax.random.key(4), a, b, nav1.params, None, TeacherConfig(use_belief=False, skip=0.5))
+    _, answered = answer(
+        jax.random.key(4), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, skip=0.5)
+    )
     assert not bool(answered.any())  # max score −1 < 0.5 · 3 ... all skipped (negative returns)
-    myopic = segment_scores(b, nav1.params, None, TeacherConfig(use_belief=False, gamma=0.5))
+    myopic = segment_scores(b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, gamma=0.5))
     np.testing.assert_allclose(np.asarray(myopic), -(0.25 + 0.5 + 1.0))

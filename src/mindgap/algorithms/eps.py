@@ -40,18 +40,14 @@ import jax
 import jax.numpy as jnp
 
 from .. import rng
+from ..data.fingerprint import fingerprint
+from ..data.prefs import PrefData, prefs_add, prefs_init
+from ..data.replay import relabel
+from ..envs.interface import Env, check_env
 from ..feedback.queries import SAMPLERS, select_queries
-from ..feedback.replay import relabel
+from ..models.actor import actor_dist
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
-from ..models.reward_ensemble import (
-    PrefData,
-    RewardConfig,
-    RewardState,
-    prefs_add,
-    prefs_init,
-    reward_init,
-    train_reward,
-)
+from ..models.reward_ensemble import RewardConfig, RewardState, preference_probs, reward_init, train_reward
 from ..teachers import expectation
 from ..teachers.expectation import ExpectationTeacher
 from ..teachers.preference import TeacherConfig
@@ -65,9 +61,9 @@ from .eps_reward import (
     u_norm_from_replay,
 )
 from .explicability import explicability
-from .pbrl import FAST_SCHEDULE, Schedule, drive, fingerprint, run_record
-from .sac import SACConfig, actor_dist
-from .sac_loop import LoopState, loop_init, run_chunk
+from .pbrl import FAST_SCHEDULE, Schedule, drive, run_record
+from .sac import SACConfig
+from .sac_loop import LoopState, dims, loop_init, run_chunk
 
 METHODS = ("eps", "drlhp")
 SURROGATES = ("learned", "exact")
@@ -194,10 +190,17 @@ def u_params(c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig):
     return c.reward.params
 
 
-def _reward_params(world_params, c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig) -> EPSRewardParams:
+class WorldArgs(NamedTuple):
+    """The true world as EPS's jitted programs take it: its params and :meth:`~mindgap.envs.interface.World.obs_units`."""
+
+    params: object
+    units: jax.Array
+
+
+def _reward_params(env: Env, w: WorldArgs, c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig) -> EPSRewardParams:
     f = jnp.float32
     return EPSRewardParams(
-        world_params,
+        w.params,
         u_params(c, person, cfg),
         c.u_norm[0],
         c.u_norm[1],
@@ -205,18 +208,22 @@ def _reward_params(world_params, c: EPSCarry, person: ExpectationTeacher, cfg: E
         jnp.asarray(cfg.dynamics.min_std, f),
         c.h_shift,
         jnp.asarray(cfg.lam, f),
+        w.units,
+        env,
     )
 
 
-def _init(keys, world_params, cfg: EPSConfig) -> EPSCarry:
+def _init(keys, env: Env, world_params, cfg: EPSConfig) -> EPSCarry:
+    d, a = dims(env)
+
     def one(k):
         k_loop, k_rew, k_dyn, k_run = jax.random.split(k, 4)
-        norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.ones(2))  # replaced at the first round
+        norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))  # replaced at the first round
         return EPSCarry(
-            loop_init(k_loop, world_params, cfg.agent_sac(), cfg.total_steps),
-            reward_init(k_rew, 2, 2, cfg.reward),
-            prefs_init(cfg.queries, cfg.segment, 2, 2),
-            dynamics_init(k_dyn, 2, 2, cfg.dynamics, norm),
+            loop_init(k_loop, env, world_params, cfg.agent_sac(), cfg.total_steps),
+            reward_init(k_rew, d, a, cfg.reward),
+            prefs_init(cfg.queries, cfg.segment, d, a),
+            dynamics_init(k_dyn, d, a, cfg.dynamics, norm),
             jnp.array([0.0, 1.0], jnp.float32),
             jnp.zeros((), jnp.float32),
             k_run,
@@ -230,21 +237,28 @@ def _where(cond, a, b):
     return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-def _round_one(c: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
+def _round_one(c: EPSCarry, env: Env, w: WorldArgs, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
     """One seed's feedback round (lines 4–7 of Algorithm 3), then relabelling."""
     key, k_dyn, k_fresh, k_q, k_t, k_r = jax.random.split(c.key, 6)
     buf = c.loop.replay
     dyn = c.dynamics
     if cfg.method == "eps":
         valid = jnp.arange(buf.capacity) < buf.size
-        fresh = dynamics_init(k_fresh, 2, 2, cfg.dynamics, fit_norm(buf.obs, buf.act, buf.next_obs, valid))
+        norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
+        fresh = dynamics_init(k_fresh, buf.obs.shape[-1], buf.act.shape[-1], cfg.dynamics, norm)
         dyn, _ = train_dynamics(
             k_dyn, buf.obs, buf.act, buf.next_obs, valid, cfg.dynamics, init=_where(c.queries == 0, fresh, dyn)
         )
     left = cfg.queries - c.queries
     if cfg.surrogate == "learned":
         seg_a, seg_b = select_queries(
-            k_q, buf, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
+            k_q,
+            buf,
+            partial(preference_probs, c.reward.params),
+            cfg.per_round,
+            cfg.segment,
+            cfg.sampler,
+            cfg.candidates,
         )
         labels, answered = expectation.answer(k_t, seg_a, seg_b, person, tcfg)
         answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
@@ -256,26 +270,27 @@ def _round_one(c: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSCo
     u_norm = jnp.stack(u_norm_from_replay(u_params(c, person, cfg), buf))
     c = c._replace(dynamics=dyn, u_norm=u_norm, key=key)
     if cfg.method == "eps" and cfg.centre_entropy:
-        c = c._replace(h_shift=entropy_mean_from_replay(_reward_params(world_params, c, person, cfg), buf))
-    replay = relabel(buf, _reward_fn(cfg), _reward_params(world_params, c, person, cfg))
+        c = c._replace(h_shift=entropy_mean_from_replay(_reward_params(env, w, c, person, cfg), buf))
+    replay = relabel(buf, _reward_fn(cfg), _reward_params(env, w, c, person, cfg))
     shown = jnp.minimum(cfg.per_round, left)
     return c._replace(loop=c.loop._replace(replay=replay), queries=c.queries + shown), (loss, acc)
 
 
-@partial(jax.jit, static_argnames=("cfg", "tcfg"))
-def _feedback(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
-    return jax.vmap(lambda c: _round_one(c, world_params, person, cfg, tcfg))(carry)
+@partial(jax.jit, static_argnames=("env", "cfg", "tcfg"))
+def _feedback(carry: EPSCarry, env: Env, w: WorldArgs, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
+    return jax.vmap(lambda c: _round_one(c, env, w, person, cfg, tcfg))(carry)
 
 
-def _chunk(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, phase: str) -> EPSCarry:
+def _chunk(carry: EPSCarry, env: Env, w: WorldArgs, person: ExpectationTeacher, cfg: EPSConfig, phase: str):
     learned = phase == "train"
     sac = cfg.agent_sac()
 
     def one(c: EPSCarry):
         return run_chunk(
             c.loop,
-            world_params,
-            _reward_params(world_params, c, person, cfg),
+            env,
+            w.params,
+            _reward_params(env, w, c, person, cfg),
             n_steps=cfg.chunk,
             cfg=sac,
             phase=phase,
@@ -307,26 +322,25 @@ def train(
         ``paths``, ``config``, ``carry``).
     """
     cfg.check()
-    params = world.params
+    check_env(world.env, density=True, who="EPS")
+    env, w = world.env, WorldArgs(world.params, world.obs_units())
     tcfg = cfg.teacher
     meta = run_record(
         world, seeds, teacher=f"expectation:{person_name}", person_hash=fingerprint(person), config=cfg.as_dict()
     )
-    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), env, w.params, cfg)
 
     def feedback(c):
-        return _feedback(c, params, person, cfg, tcfg)[0]
+        return _feedback(c, env, w, person, cfg, tcfg)[0]
 
     def chunk(c, phase):
-        return _chunk(c, params, person, cfg, phase)
+        return _chunk(c, env, w, person, cfg, phase)
 
     # the engine's schedule reads cfg.sac (learning_starts) — the same for the agent's SAC
     return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
 
 
-def explicability_scores(
-    key, world_params, person: ExpectationTeacher, actors, episodes: int = 100, agent_dist=actor_dist
-):
+def explicability_scores(key, world, person: ExpectationTeacher, actors, episodes: int = 100, agent_dist=actor_dist):
     """Explicability score (Eq. 4.4) of each seed's policy over ``episodes`` stochastic rollouts.
 
     Args:
@@ -343,7 +357,7 @@ def explicability_scores(
     out = []
     for s, k in enumerate(jax.random.split(key, seeds)):
         actor = jax.tree.map(lambda a: a[s], actors)
-        e = explicability(k, world_params, person.belief, actor, person.policy, episodes, agent_dist)
+        e = explicability(k, world, person.belief, actor, person.policy, episodes, agent_dist)
         out.append(
             {
                 "score": float(e.score),
@@ -354,30 +368,3 @@ def explicability_scores(
             }
         )
     return out
-
-
-def surrogate_maps(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, k: int = 4):
-    """Every seed's :func:`surrogate_map`, of what its u_H is computed from (``cfg.surrogate``): [seeds, H·k, W·k]."""
-    if cfg.surrogate == "exact":
-        u = u_params(carry, person, cfg)
-        return jax.vmap(lambda norm: surrogate_map(u, norm, world_params, k))(carry.u_norm)
-    return jax.vmap(surrogate_map, in_axes=(0, 0, None, None))(carry.reward.params, carry.u_norm, world_params, k)
-
-
-@partial(jax.jit, static_argnames=("k",))
-def surrogate_map(u_params, u_norm: jax.Array, world_params, k: int = 4) -> jax.Array:
-    """The standardised u_H on a k×k grid of points per cell, averaged over 16 full-speed directions (Fig. 28).
-
-    Returns [H·k, W·k] (the layout of :func:`~mindgap.plotting.terrain.save_fields`); the
-    walls are masked when drawn.
-    """
-    h, w = world_params.grid.shape
-    ys, xs = (jnp.arange(h * k) + 0.5) / k, (jnp.arange(w * k) + 0.5) / k
-    pos = jnp.stack(jnp.meshgrid(xs, ys), -1).reshape(-1, 2)  # (x, y), row-major over [H·k, W·k]
-    obs = 2.0 * pos / jnp.array([w, h], jnp.float32) - 1.0
-    angles = jnp.linspace(0.0, 2 * jnp.pi, 16, endpoint=False)
-    acts = jnp.stack([jnp.cos(angles), jnp.sin(angles)], -1)
-    flat = jnp.repeat(obs, 16, axis=0)
-    params = EPSRewardParams(world_params, u_params, u_norm[0], u_norm[1], None, 0.0, 0.0, 0.0)
-    u = normalised_u(params, flat, jnp.tile(acts, (obs.shape[0], 1)), flat)
-    return u.reshape(h * k, w * k, 16).mean(-1)

@@ -3,7 +3,7 @@
 Eq. 4.6 maximises ``E Σ_t γ^t [r_A + λ (u_H + H_T[s'|s,a] + H_π[a|s])]``. Its parts:
 
 * **r_A + λ(u_H + H_T)** is a reward of the transition, :func:`eps_reward`, stored in the
-  replay buffer and recomputed by :func:`~mindgap.feedback.replay.relabel` whenever u_H
+  replay buffer and recomputed by :func:`~mindgap.data.replay.relabel` whenever u_H
   or T_A changes (§4.3.3: "we relabel the data samples every time u_H is updated").
 * **λ H_π** is SAC's own entropy bonus: SAC maximises ``E Σ_t γ^t [c·r_t + α H_π(·|s_t)]``
   (its critic target subtracts ``α log π(a'|s')`` and its actor minimises
@@ -34,9 +34,9 @@ spread against r_A, the same for every world. An :class:`ExactSurrogate` (the pe
 per-step score, an oracle ablation) is standardised over the buffer the same way.
 
 Units of H_T: a differential entropy depends on the units of s'. Here it is measured in
-the world's cells, the units of the exact densities log T_A, log T_H of the terrain
-worlds (:func:`~mindgap.envs.terrain.log_prob_pos`): T_A models the observation in
-[−1, 1]², and ``size/2`` cells per observation unit converts. A constant in H_T acts as
+the world's own units, those of its exact densities log T_A, log T_H
+(:meth:`~mindgap.envs.interface.World.obs_units` converts from observation units; for the
+terrain worlds, cells: T_A models the observation in [−1, 1]², ``size/2`` cells per unit). A constant in H_T acts as
 a per-step bonus or cost, which matters in worlds whose episodes end; ``h_shift`` is
 subtracted from H_T (0 keeps Eq. 4.6 as written; :func:`entropy_mean_from_replay` gives
 the buffer mean, to centre it as u_H is centred).
@@ -45,13 +45,14 @@ the buffer mean, to centre it as u_H is centred).
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from functools import partial
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain import TerrainParams, TerrainState, position, reward
-from ..feedback.replay import Replay, relabel
+from ..data.replay import Replay, relabel
+from ..envs.interface import Env, World
 from ..models.agent_dynamics import dynamics_entropy
 from ..models.gaussian_dynamics import DynamicsModel
 from ..models.mlp import Params
@@ -60,11 +61,17 @@ from ..teachers.expectation import ExpectationTeacher, step_log_likelihood
 from .sac import SACConfig
 
 
-class EPSRewardParams(NamedTuple):
+@partial(
+    jax.tree_util.register_dataclass,
+    data_fields=["world", "u_params", "u_mean", "u_std", "dynamics", "min_std", "h_shift", "lam", "units"],
+    meta_fields=["env"],
+)
+@dataclasses.dataclass(frozen=True)
+class EPSRewardParams:
     """What :func:`eps_reward` reads (a pytree: it is ``reward_params`` of ``run_chunk`` and ``relabel``).
 
     Attributes:
-        world: the true world (r_A, and the cell size that sets the units of H_T).
+        world: the true world's params (r_A).
         u_params: the reward ensemble's members (u_H before normalisation), or an
             :class:`ExactSurrogate`.
         u_mean, u_std: normalisation of u_H (:func:`u_norm_from_replay`).
@@ -72,20 +79,25 @@ class EPSRewardParams(NamedTuple):
         min_std: T_A's standard-deviation floor (``DynamicsConfig.min_std``).
         h_shift: subtracted from H_T (0: Eq. 4.6 as written).
         lam: λ, the reconciliation factor.
+        units: [d] the world's units per observation unit, the units H_T is measured in
+            (:meth:`~mindgap.envs.interface.World.obs_units`).
+        env: the world's functions (static; ``env.reward`` is r_A).
     """
 
-    world: TerrainParams
+    world: Any
     u_params: Params  # or an ExactSurrogate
     u_mean: jax.Array
     u_std: jax.Array
-    dynamics: DynamicsModel
+    dynamics: DynamicsModel | None
     min_std: jax.Array
     h_shift: jax.Array
     lam: jax.Array
+    units: jax.Array
+    env: Env
 
 
 def eps_reward_params(
-    world: TerrainParams,
+    world: World,
     u_params: Params,
     dynamics: DynamicsModel,
     lam: float,
@@ -94,29 +106,28 @@ def eps_reward_params(
     u_norm: tuple = (0.0, 1.0),
     h_shift: float = 0.0,
 ) -> EPSRewardParams:
-    """Assemble :class:`EPSRewardParams` (scalars become float32 leaves)."""
+    """Assemble :class:`EPSRewardParams` for ``world`` (scalars become float32 leaves)."""
 
     def f(x):
         return jnp.asarray(x, jnp.float32)
 
-    return EPSRewardParams(world, u_params, f(u_norm[0]), f(u_norm[1]), dynamics, f(min_std), f(h_shift), f(lam))
+    return EPSRewardParams(
+        world.params,
+        u_params,
+        f(u_norm[0]),
+        f(u_norm[1]),
+        dynamics,
+        f(min_std),
+        f(h_shift),
+        f(lam),
+        world.obs_units(),
+        world.env,
+    )
 
 
-def cells_per_obs_unit(world: TerrainParams) -> jax.Array:
-    """[2] cells per unit of observation along (x, y): the observation maps the map onto [−1, 1]²."""
-    h, w = world.grid.shape
-    return jnp.array([w, h], jnp.float32) / 2.0
-
-
-def world_reward(world: TerrainParams, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
-    """r_A of transitions given as observations: [B, ·] → [B] (the world's reward depends on positions only)."""
-
-    def one(o, a, o2):
-        zero = jnp.zeros((), jnp.int32)
-        s, s2 = position(o, world), position(o2, world)
-        return reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world)
-
-    return jax.vmap(one)(obs, act, next_obs)
+def world_reward(params: EPSRewardParams, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
+    """r_A of transitions given as observations: [B, ·] → [B]."""
+    return jax.vmap(params.env.reward, (0, 0, 0, None))(obs, act, next_obs, params.world)
 
 
 class ExactSurrogate(NamedTuple):
@@ -144,7 +155,7 @@ def normalised_u(params: EPSRewardParams, obs, act, next_obs) -> jax.Array:
 
 def environment_entropy(params: EPSRewardParams, obs, act) -> jax.Array:
     """H_T[s'|s,a] of T_A in cells, less ``h_shift``: [B, ·] → [B]."""
-    h = dynamics_entropy(params.dynamics, obs, act, params.min_std, cells_per_obs_unit(params.world))
+    h = dynamics_entropy(params.dynamics, obs, act, params.min_std, params.units)
     return h - params.h_shift
 
 
@@ -158,7 +169,7 @@ def eps_reward(params: EPSRewardParams, obs: jax.Array, act: jax.Array, next_obs
 
     A module-level function, so that ``run_chunk(..., reward_fn=eps_reward)`` compiles once.
     """
-    r_a = world_reward(params.world, obs, act, next_obs)
+    r_a = world_reward(params, obs, act, next_obs)
     return reshape(r_a, normalised_u(params, obs, act, next_obs), environment_entropy(params, obs, act), params.lam)
 
 
@@ -196,6 +207,6 @@ def entropy_mean_from_replay(params: EPSRewardParams, buf: Replay) -> jax.Array:
 
     def h(p, obs, act, next_obs):
         del next_obs
-        return environment_entropy(p._replace(h_shift=jnp.zeros_like(p.h_shift)), obs, act)
+        return environment_entropy(dataclasses.replace(p, h_shift=jnp.zeros_like(p.h_shift)), obs, act)
 
     return _filled_stats(relabel(buf, h, params).reward, buf)[0]

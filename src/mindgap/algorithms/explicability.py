@@ -12,8 +12,9 @@ Eq. 4.3 defines the two trajectory distributions over the same start distributio
 
 summed over the steps the episode lasts. Both models end an episode at the same place
 (goal, pit: a function of the position) or at the horizon, so the stopping time is the
-same under both and adds nothing. The terrain worlds give both log T exactly
-(:func:`~mindgap.envs.terrain.log_prob_pos`, the same mixed measure — a point mass when the
+same under both and adds nothing. Both log T come from the world's exact ``log_prob`` under
+its true params and under the person's (for the terrain worlds
+:func:`~mindgap.envs.terrain.log_prob_pos`, the same mixed measure — a point mass when the
 agent stays, a density per cell² otherwise — under both tables), and the agent and π_H
 are tanh-Gaussian, so each policy term is the difference of the pre-tanh Gaussian log
 densities at the drawn pre-tanh action u: the tanh Jacobian is common to both and cancels
@@ -21,7 +22,7 @@ exactly, which keeps saturated actions (|a| → 1) finite.
 
 The agent acts with its stochastic policy: a deterministic policy against a density has
 an infinite KL. Written by hand: the estimator is a few lines around the world's own
-``step`` and ``log_prob_pos``.
+``step`` and ``log_prob``.
 """
 
 from __future__ import annotations
@@ -33,9 +34,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain import TerrainParams, log_prob_pos, observe, reset, step
+from ..envs.interface import World, check_env
+from ..models.actor import actor_dist
 from ..models.squashed import gaussian_log_prob
-from .sac import actor_dist
 
 
 class Explicability(NamedTuple):
@@ -60,8 +61,8 @@ class Explicability(NamedTuple):
 
 def explicability(
     key: jax.Array,
-    world: TerrainParams,
-    belief: TerrainParams,
+    world: World,
+    belief,
     agent,
     expected_actor,
     episodes: int = 100,
@@ -70,42 +71,49 @@ def explicability(
     """−KL(p_A(τ) ‖ p_A^H(τ)) (Eq. 4.4) from ``episodes`` rollouts of the agent in ``world``.
 
     Args:
-        world: the true world (T_A, ρ, reward, horizon).
-        belief: the world under the person's dynamics table (T_H).
+        world: the true world (T_A, ρ, reward, horizon); its env needs ``log_prob``.
+        belief: the world's params under the person's dynamics (T_H).
         agent: parameters of the agent's policy, read by ``agent_dist``.
         expected_actor: SAC actor parameters of π_H
-            (:func:`~mindgap.teachers.expected_policy.expected_policy`).
+            (:func:`~mindgap.algorithms.expected_policy.expected_policy`).
         agent_dist: ``agent_dist(agent, obs [d]) → (mean [a], log_std [a])`` of the agent's
             pre-tanh Gaussian; SAC's actor by default, a shaped policy's
             (:func:`~mindgap.algorithms.policy_shaping.shaped_dist`) for Policy Shaping. A
             module-level function, so the compiled program is reused.
     """
-    return _explicability(key, world, belief, agent, expected_actor, episodes, int(world.horizon), agent_dist)
+    check_env(world.env, density=True, who="the explicability score")
+    args = (world.env, episodes, world.horizon, agent_dist)
+    return _explicability(key, world.params, belief, agent, expected_actor, *args)
 
 
-@partial(jax.jit, static_argnums=(5, 6, 7))
-def _explicability(key, world, belief, agent, expected_actor, episodes, horizon, agent_dist):
-    models = jax.tree.map(lambda t, h: jnp.stack([t, h]), world, belief)  # T_A and T_H
+@partial(jax.jit, static_argnums=(5, 6, 7, 8))
+def _explicability(key, params, belief, agent, expected_actor, env, episodes, horizon, agent_dist):
+    models = jax.tree.map(lambda t, h: jnp.stack([t, h]), params, belief)  # T_A and T_H
 
     def episode(k):
         k0, k1 = jax.random.split(k)
 
-        def body(s, kk):
+        def body(carry, kk):
+            s, done = carry
             k_act, k_env = jax.random.split(kk)
-            obs = observe(s, world)
+            obs = env.observe(s, params)
             mean, log_std = agent_dist(agent, obs)
             u = mean + jnp.exp(log_std) * jax.random.normal(k_act, mean.shape, mean.dtype)
             a = jnp.tanh(u)
-            out = step(k_env, s, a, world)
-            nxt = out.state.pos
-            both = jax.vmap(log_prob_pos, (0, None, None, None))(models, s.pos, a, nxt)  # one program for both
+            out = env.step(k_env, s, a, params)
+            nxt = env.observe(out.state, params)
+            both = jax.vmap(env.log_prob, (None, None, None, 0))(obs, a, nxt, models)  # one program for both
             log_t = both[0] - both[1]
             h_mean, h_log_std = actor_dist(expected_actor, obs)
             log_pi = gaussian_log_prob(mean, log_std, u) - gaussian_log_prob(h_mean, h_log_std, u)
-            alive = ~s.done
-            return out.state, (jnp.where(alive, log_t, 0.0), jnp.where(alive, log_pi, 0.0), out.reward)
+            alive = ~done
+            state = jax.tree.map(lambda x, y: jnp.where(done, x, y), s, out.state)
+            ended = done | out.terminated | out.truncated
+            r = jnp.where(alive, out.reward, 0.0)
+            return (state, ended), (jnp.where(alive, log_t, 0.0), jnp.where(alive, log_pi, 0.0), r)
 
-        _, (log_t, log_pi, rew) = jax.lax.scan(body, reset(k0, world), jax.random.split(k1, horizon))
+        start = (env.reset(k0, params), jnp.zeros((), bool))
+        _, (log_t, log_pi, rew) = jax.lax.scan(body, start, jax.random.split(k1, horizon))
         return log_t.sum(), log_pi.sum(), rew.sum()
 
     log_t, log_pi, returns = jax.vmap(episode)(jax.random.split(key, episodes))

@@ -44,27 +44,26 @@ import numpy as np
 from .. import rng
 from .._io import atomic_write
 from ..checkpoint import load_pytree, save_pytree
-from ..envs.terrain.params import identity_leaves
-from ..feedback.queries import SAMPLERS, query_scores, select_queries
-from ..feedback.replay import relabel
-from ..feedback.segments import Segments, sample_segments, take
+from ..data.fingerprint import fingerprint
+from ..data.prefs import PrefData, prefs_add, prefs_init
+from ..data.replay import relabel
+from ..data.segments import Segments
+from ..envs.interface import Env
+from ..feedback.queries import SAMPLERS, select_queries
 from ..models.reward_ensemble import (
     ABSORBING_STATES,
-    PrefData,
     RewardConfig,
     RewardState,
     absorbing_reward,
     ensemble_reward,
     preference_probs,
-    prefs_add,
-    prefs_init,
     reward_init,
     train_reward,
 )
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
 from .sac import SACConfig, sac_init
-from .sac_loop import LoopState, evaluate, loop_init, run_chunk
+from .sac_loop import LoopState, dims, evaluate, loop_init, run_chunk
 
 METHODS = ("sac", "pebble", "drlhp")
 EXPLORATION = {"noise_color": 1.0, "entropy_bonus": 1.0}
@@ -224,13 +223,15 @@ class Carry(NamedTuple):
     queries: jax.Array
 
 
-def _init(keys, world_params, cfg: PbRLConfig) -> Carry:
+def _init(keys, env: Env, world_params, cfg: PbRLConfig) -> Carry:
+    obs_dim, act_dim = dims(env)
+
     def one(k):
         k_loop, k_rew, k_run = jax.random.split(k, 3)
         return Carry(
-            loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
-            reward_init(k_rew, 2, 2, cfg.reward, absorbing=cfg.absorbing_heads()),
-            prefs_init(max(cfg.queries, 1), cfg.segment, 2, 2, absorbing=cfg.absorbing),
+            loop_init(k_loop, env, world_params, cfg.sac, cfg.total_steps),
+            reward_init(k_rew, obs_dim, act_dim, cfg.reward, absorbing=cfg.absorbing_heads()),
+            prefs_init(max(cfg.queries, 1), cfg.segment, obs_dim, act_dim, absorbing=cfg.absorbing),
             k_run,
             jnp.zeros((), jnp.int32),
         )
@@ -241,25 +242,11 @@ def _init(keys, world_params, cfg: PbRLConfig) -> Carry:
 def _select_one(c: Carry, cfg: PbRLConfig):
     """First half of one seed's feedback round: the queries to show (and the keys for the rest)."""
     key, k_q, k_t, k_r = jax.random.split(c.key, 4)
-    if cfg.absorbing:
-        seg_a, seg_b = _select_absorbing(k_q, c.loop.replay, c.reward.params, cfg)
-    else:
-        seg_a, seg_b = select_queries(
-            k_q, c.loop.replay, c.reward.params, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates
-        )
+    probs = partial(preference_probs, c.reward.params)
+    seg_a, seg_b = select_queries(
+        k_q, c.loop.replay, probs, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates, cfg.absorbing
+    )
     return c._replace(key=key), seg_a, seg_b, k_t, k_r
-
-
-def _select_absorbing(key, buf, reward_params, cfg: PbRLConfig):
-    """:func:`~mindgap.feedback.queries.select_queries` with absorbing segments (the same pairs for the same key)."""
-    ka, kb = jax.random.split(key)
-    m = cfg.per_round * (1 if cfg.sampler == "uniform" else cfg.candidates)
-    seg_a = sample_segments(buf, ka, m, cfg.segment, absorbing=True)
-    seg_b = sample_segments(buf, kb, m, cfg.segment, absorbing=True)
-    if cfg.sampler == "uniform":
-        return seg_a, seg_b
-    top = jax.lax.top_k(query_scores(preference_probs(reward_params, seg_a, seg_b), cfg.sampler), cfg.per_round)[1]
-    return take(seg_a, top), take(seg_b, top)
 
 
 def _learn_one(c: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
@@ -274,13 +261,13 @@ def _learn_one(c: Carry, seg_a, seg_b, labels, answered, k_r, cfg: PbRLConfig):
     return c, (loss, acc)
 
 
-@partial(jax.jit, static_argnames=("cfg", "tcfg"))
-def _feedback(carry: Carry, world_params, belief_params, cfg: PbRLConfig, tcfg: TeacherConfig):
+@partial(jax.jit, static_argnames=("env", "cfg", "tcfg"))
+def _feedback(carry: Carry, env: Env, world_params, belief_params, cfg: PbRLConfig, tcfg: TeacherConfig):
     """One feedback round of every seed: query, answer, fit the ensemble, relabel the buffer."""
 
     def one(c: Carry):
         c, seg_a, seg_b, k_t, k_r = _select_one(c, cfg)
-        labels, answered = answer(k_t, seg_a, seg_b, world_params, belief_params, tcfg)
+        labels, answered = answer(k_t, seg_a, seg_b, env, world_params, belief_params, tcfg)
         return _learn_one(c, seg_a, seg_b, labels, answered, k_r, cfg)
 
     return jax.vmap(one)(carry)
@@ -325,7 +312,7 @@ def _reset_critic(carry, cfg):
 
     def one(c):
         key, k = jax.random.split(c.key)
-        fresh = sac_init(k, 2, 2, cfg.sac)
+        fresh = sac_init(k, c.loop.replay.obs.shape[-1], c.loop.replay.act.shape[-1], cfg.sac)
         sac = c.loop.sac
         params = sac.params._replace(critic=fresh.params.critic, target=fresh.params.critic)
         sac = sac._replace(params=params, critic_opt=fresh.critic_opt)
@@ -334,11 +321,12 @@ def _reset_critic(carry, cfg):
     return jax.vmap(one)(carry)
 
 
-def _chunk(carry: Carry, world_params, cfg: PbRLConfig, phase: str) -> Carry:
+def _chunk(carry: Carry, env: Env, world_params, cfg: PbRLConfig, phase: str) -> Carry:
     learned = cfg.method != "sac" and phase == "train"
     loop = jax.vmap(
         lambda ls, rp: run_chunk(
             ls,
+            env,
             world_params,
             rp,
             n_steps=cfg.chunk,
@@ -352,19 +340,10 @@ def _chunk(carry: Carry, world_params, cfg: PbRLConfig, phase: str) -> Carry:
     return carry._replace(loop=loop)
 
 
-def _evaluate(carry, world_params, episodes: int, step: int, base_seed: int):
+def _evaluate(carry, world, episodes: int, step: int, base_seed: int):
     keys = jax.random.split(rng.key(10_000 + base_seed + step), carry.queries.shape[0])
-    return jax.vmap(lambda k, a: evaluate(k, a, world_params, episodes))(keys, carry.loop.sac.params.actor)
-
-
-def fingerprint(tree) -> str:
-    """Hash of a pytree's arrays (a world with its beliefs, a simulated person): recorded with a run to refuse resuming another."""
-    import hashlib
-
-    h = hashlib.sha256()
-    for leaf in identity_leaves(tree):
-        h.update(np.asarray(leaf).tobytes())
-    return h.hexdigest()[:16]
+    actors = carry.loop.sac.params.actor
+    return jax.vmap(lambda k, a: evaluate(k, world.env, a, world.params, episodes, world.horizon))(keys, actors)
 
 
 def train(
@@ -422,17 +401,17 @@ def run_engine(world, cfg, seeds, teacher, belief, out, progress, fresh, *, init
     cfg.check()
     host, belief_params, tcfg, meta = teacher_setup(world, cfg, seeds, teacher, belief)
     params = world.params
-    carry = init(jax.random.split(rng.key(cfg.seed), seeds), params, cfg)
+    carry = init(jax.random.split(rng.key(cfg.seed), seeds), world.env, params, cfg)
 
     def one_round(c):
         if host is None:
-            return feedback(c, params, belief_params, cfg, tcfg)[0]
+            return feedback(c, world.env, params, belief_params, cfg, tcfg)[0]
         c, seg_a, seg_b, _, k_r = select(c, cfg)
         labels, answered = host_answers(host, seg_a, seg_b, c.queries, cfg.per_round, cfg.queries)
         return learn(c, seg_a, seg_b, labels, answered, k_r, cfg)[0]
 
     def one_chunk(c, phase):
-        return chunk(c, params, cfg, phase)
+        return chunk(c, world.env, params, cfg, phase)
 
     return drive(world, cfg, seeds, meta, carry, one_round, one_chunk, out=out, progress=progress, fresh=fresh)
 
@@ -457,7 +436,7 @@ def run_record(world, seeds: int, **extra) -> dict:
     """What a run folder's config.json records of the world and seeds (checked; resuming compares it), plus ``extra``."""
     if seeds < 1:
         raise ValueError("seeds must be at least 1")
-    meta = {"world": world.name, "source": world.source, "world_hash": fingerprint((world.params, world.beliefs))}
+    meta = {"world": world.name, "source": world.source, "world_hash": fingerprint(world.fingerprint_tree())}
     return {**meta, "seeds": seeds, **extra}
 
 
@@ -475,7 +454,6 @@ def drive(world, cfg, seeds: int, meta: dict, carry, feedback, chunk, *, out=Non
     Returns:
         dict with ``curve``, ``final_returns``, ``paths``, ``config`` and the final ``carry``.
     """
-    params = world.params
     step, rows = 0, []
     if out is not None:
         out = Path(out)
@@ -513,7 +491,7 @@ def drive(world, cfg, seeds: int, meta: dict, carry, feedback, chunk, *, out=Non
         carry = chunk(carry, phase)
         step += cfg.chunk
         if step % cfg.eval_every == 0 or step == cfg.total_steps:
-            rets = np.asarray(_evaluate(carry, params, cfg.eval_episodes, step, cfg.seed)[0])
+            rets = np.asarray(_evaluate(carry, world, cfg.eval_episodes, step, cfg.seed)[0])
             q = np.asarray(carry.queries)
             rows += [(s, step, float(rets[s].mean()), int(q[s])) for s in range(seeds)]
             if bar is not None:
@@ -524,7 +502,8 @@ def drive(world, cfg, seeds: int, meta: dict, carry, feedback, chunk, *, out=Non
             bar.update(cfg.chunk)
     if bar is not None:
         bar.close()
-    final, pos, alive = _evaluate(carry, params, max(cfg.eval_episodes, 20), cfg.total_steps + 1, cfg.seed)
+    final, obs, alive = _evaluate(carry, world, max(cfg.eval_episodes, 20), cfg.total_steps + 1, cfg.seed)
+    pos = world.trace(obs)
     paths = []
     for s in range(seeds):
         seed_paths = []

@@ -31,9 +31,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from ..models.actor import LOG_STD_MAX, LOG_STD_MIN, actor_dist
 from ..models.mlp import Params
 from ..models.squashed import gaussian_log_prob, tanh_log_det
-from .sac import LOG_STD_MAX, LOG_STD_MIN, actor_dist
 
 
 class ShapedPolicy(NamedTuple):

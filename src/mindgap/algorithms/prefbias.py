@@ -18,7 +18,7 @@ checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
    * fit q(w) q(φ) to all answers by the negative ELBO (line 7; Eqs. 3.2–3.5);
    * relabel the whole buffer with the posterior-mean reward r_w (PEBBLE's relabelling),
      and with ``prefbias.absorbing`` the terminal transitions with the value of their
-     absorbing state on top (:func:`~mindgap.feedback.replay.terminal_bonus`);
+     absorbing state on top (:func:`~mindgap.data.replay.terminal_bonus`);
 
 3. in between, SAC on the relabelled reward under the true dynamics (line 9).
 
@@ -34,18 +34,18 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from ..feedback.prefbias_queries import SAMPLERS, select_queries
-from ..feedback.replay import relabel
+from ..data.prefs import PrefData, prefs_add, prefs_init
+from ..data.replay import relabel
+from ..envs.interface import Env
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
-from ..models.prefbias_nets import absorbing_value, belief_noise_map, posterior_reward
-from ..models.reward_ensemble import PrefData, prefs_add, prefs_init
+from ..models.prefbias_nets import absorbing_value, posterior_reward
 from ..teachers.host import HostTeacher
 from ..teachers.preference import TeacherConfig, answer
 from .pbrl import FAST_SCHEDULE, Schedule, run_engine
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
-from .sac_loop import LoopState, loop_init, run_chunk
+from .prefbias_queries import SAMPLERS, select_queries
+from .sac_loop import LoopState, dims, loop_init, run_chunk
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,20 +131,21 @@ class PrefBiasCarry(NamedTuple):
     queries: jax.Array
 
 
-def _init(keys, world_params, cfg: PrefBiasLoopConfig) -> PrefBiasCarry:
+def _init(keys, env: Env, world_params, cfg: PrefBiasLoopConfig) -> PrefBiasCarry:
     # Placeholders of the right structure: the first feedback round fits f_ψ and its
     # normalisation and initialises the posteriors from it (Alg. 2, line 1).
     pcfg = cfg.prefbias
+    d, a = dims(env)
 
     def one(k):
         k_loop, k_dyn, k_model, k_run = jax.random.split(k, 4)
-        norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.ones(2))
-        dyn = dynamics_init(k_dyn, 2, 2, pcfg.dynamics, norm, stay=pcfg.stay_head)
+        norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))
+        dyn = dynamics_init(k_dyn, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
         return PrefBiasCarry(
-            loop_init(k_loop, world_params, cfg.sac, cfg.total_steps),
-            prefbias_init(k_model, 2, 2, pcfg, dyn),
+            loop_init(k_loop, env, world_params, cfg.sac, cfg.total_steps),
+            prefbias_init(k_model, d, a, pcfg, dyn),
             dyn,
-            prefs_init(cfg.queries, cfg.segment, 2, 2, absorbing=pcfg.absorbing),
+            prefs_init(cfg.queries, cfg.segment, d, a, absorbing=pcfg.absorbing),
             k_run,
             jnp.zeros((), jnp.int32),
         )
@@ -163,13 +164,14 @@ def _select_one(c: PrefBiasCarry, cfg: PrefBiasLoopConfig):
     pcfg = cfg.prefbias
     key, k_dyn, k_psi0, k_init, k_q, k_t, k_r = jax.random.split(c.key, 7)
     buf = c.loop.replay
+    d, a = buf.obs.shape[-1], buf.act.shape[-1]
     valid = jnp.arange(buf.capacity) < buf.size
     first = c.queries == 0
     norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
-    fresh = dynamics_init(k_psi0, 2, 2, pcfg.dynamics, norm, stay=pcfg.stay_head)
+    fresh = dynamics_init(k_psi0, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
     start = _where(first, fresh, c.dynamics)
     dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, pcfg.dynamics, init=start)
-    model = _where(first, prefbias_init(k_init, 2, 2, pcfg, dyn), with_dynamics(c.model, dyn, pcfg))
+    model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn), with_dynamics(c.model, dyn, pcfg))
     seg_a, seg_b = select_queries(
         k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples
     )
@@ -203,13 +205,13 @@ def _learn_one(c: PrefBiasCarry, seg_a, seg_b, labels, answered, k_r, cfg: PrefB
     return c, info
 
 
-@partial(jax.jit, static_argnames=("cfg", "tcfg"))
-def _feedback(carry, world_params, belief_params, cfg: PrefBiasLoopConfig, tcfg: TeacherConfig):
+@partial(jax.jit, static_argnames=("env", "cfg", "tcfg"))
+def _feedback(carry, env: Env, world_params, belief_params, cfg: PrefBiasLoopConfig, tcfg: TeacherConfig):
     """One feedback round of every seed with the simulated person, in one program."""
 
     def one(c):
         c, seg_a, seg_b, k_t, k_r = _select_one(c, cfg)
-        labels, answered = answer(k_t, seg_a, seg_b, world_params, belief_params, tcfg)
+        labels, answered = answer(k_t, seg_a, seg_b, env, world_params, belief_params, tcfg)
         return _learn_one(c, seg_a, seg_b, labels, answered, k_r, cfg)
 
     return jax.vmap(one)(carry)
@@ -225,11 +227,12 @@ def _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg: PrefBiasLoopConfig):
     return jax.vmap(lambda *xs: _learn_one(*xs, cfg))(carry, seg_a, seg_b, labels, answered, k_r)
 
 
-def _chunk(carry: PrefBiasCarry, world_params, cfg: PrefBiasLoopConfig, phase: str) -> PrefBiasCarry:
+def _chunk(carry: PrefBiasCarry, env: Env, world_params, cfg: PrefBiasLoopConfig, phase: str) -> PrefBiasCarry:
     learned = phase == "train"
     loop = jax.vmap(
         lambda ls, w: run_chunk(
             ls,
+            env,
             world_params,
             w,
             n_steps=cfg.chunk,
@@ -241,16 +244,6 @@ def _chunk(carry: PrefBiasCarry, world_params, cfg: PrefBiasLoopConfig, phase: s
         )
     )(carry.loop, carry.model.reward.mean)
     return carry._replace(loop=loop)
-
-
-@partial(jax.jit, static_argnames=("min_std",))
-def _noise_maps(carry: PrefBiasCarry, world_params, min_std: float):
-    def one(c):
-        belief = belief_noise_map(c.model.belief.mean, c.model.norm, world_params, min_std)
-        agent = belief_noise_map(c.dynamics.params, c.dynamics.norm, world_params, min_std)
-        return belief, agent
-
-    return jax.vmap(one)(carry)
 
 
 def train(
@@ -272,11 +265,10 @@ def train(
 
     Returns:
         the dict of :func:`mindgap.algorithms.pbrl.train` (``curve``, ``final_returns``,
-        ``paths``, ``config``, ``carry``) plus ``belief_noise`` [seeds, H, W], the learned
-        belief's noise per cell (:func:`~mindgap.models.prefbias_nets.belief_noise_map`,
-        NaN on walls), and ``dynamics_noise`` [seeds, H, W], that of the agent's f_ψ.
+        ``paths``, ``config``, ``carry``); on a terrain world,
+        :func:`~mindgap.planning.terrain_maps.noise_maps` draws the learned belief from ``carry``.
     """
-    res = run_engine(
+    return run_engine(
         world,
         cfg,
         seeds,
@@ -291,6 +283,3 @@ def train(
         learn=_learn,
         chunk=_chunk,
     )
-    belief_map, agent_map = _noise_maps(res["carry"], world.params, cfg.prefbias.dynamics.min_std)
-    res["belief_noise"], res["dynamics_noise"] = np.asarray(belief_map), np.asarray(agent_map)
-    return res

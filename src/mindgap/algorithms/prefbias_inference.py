@@ -40,7 +40,8 @@ import jax.numpy as jnp
 import optax
 from jax.flatten_util import ravel_pytree
 
-from ..feedback.segments import Segments, absorbed_steps, terminal_obs
+from ..data.prefs import PrefData
+from ..data.segments import Segments, absorbed_steps, terminal_obs
 from ..models.bayes import Gaussian, init_gaussian, kl_divergence
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes
 from ..models.mlp import Params, init_mlp
@@ -53,7 +54,6 @@ from ..models.prefbias_nets import (
     reward_value,
     reward_weights_init,
 )
-from ..models.reward_ensemble import PrefData
 
 BELIEF_PRIORS = ("dynamics", "random")
 

@@ -8,7 +8,7 @@ automatically tuned entropy coefficient α (target entropy −dim(A)). One updat
   up to n rewards of one episode, ``s'`` the state after the last of them and γ becomes γ^m;
   loss ``Σ_i mean (Q_i(s, a) − y)²``; a terminal transition does not bootstrap, and the value
   of a learned reward's absorbing state (Kostrikov et al. 2019) is already in its stored
-  ``r`` (:func:`~mindgap.feedback.replay.terminal_bonus`), so the update needs nothing for it;
+  ``r`` (:func:`~mindgap.data.replay.terminal_bonus`), so the update needs nothing for it;
 * actor: ``mean(α log π(ã|s) − min_i Q_i(s, ã))``, ``ã ~ π(·|s)`` reparameterised;
 * α: ``mean(−log α · (log π(ã|s) + target_entropy))``;
 * targets: ``Q̄ ← (1 − τ) Q̄ + τ Q``.
@@ -27,9 +27,9 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from ..data.batch import Batch
+from ..models.actor import sample_action
 from ..models.mlp import Params, init_mlp, init_stack, mlp
-
-LOG_STD_MIN, LOG_STD_MAX = -20.0, 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,21 +108,6 @@ class SACState(NamedTuple):
     updates: jax.Array
 
 
-class Batch(NamedTuple):
-    """Transitions: obs [B, d], act [B, a], reward [B], next_obs [B, d], terminal [B] (no bootstrap).
-
-    ``discount [B]``, when given, replaces γ in the target: γ^m for a transition that sums the
-    rewards of m steps (see :func:`~mindgap.feedback.replay.replay_sample`).
-    """
-
-    obs: jax.Array
-    act: jax.Array
-    reward: jax.Array
-    next_obs: jax.Array
-    terminal: jax.Array
-    discount: jax.Array | None = None
-
-
 def _optimiser(cfg: SACConfig) -> optax.GradientTransformation:
     return optax.adam(cfg.lr)
 
@@ -136,34 +121,6 @@ def sac_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: SACConfig) -> SACS
     params = SACParams(actor, critic, critic, log_alpha)
     opt = _optimiser(cfg)
     return SACState(params, opt.init(actor), opt.init(critic), opt.init(log_alpha), jnp.zeros((), jnp.int32))
-
-
-def actor_dist(actor: Params, obs: jax.Array):
-    """Mean and log standard deviation of the pre-tanh Gaussian. obs [..., d] → ([..., a], [..., a])."""
-    out = mlp(actor, obs)
-    mean, log_std = jnp.split(out, 2, axis=-1)
-    return mean, jnp.clip(log_std, LOG_STD_MIN, LOG_STD_MAX)
-
-
-def sample_action(actor: Params, obs: jax.Array, key: jax.Array, eps: jax.Array | None = None):
-    """A squashed-Gaussian action and its log density. obs [..., d] → (action [..., a], log π [...]).
-
-    ``eps`` (shaped like the action) replaces the standard normal draw, e.g. by one step of
-    a coloured-noise sequence; ``key`` is then unused.
-    """
-    mean, log_std = actor_dist(actor, obs)
-    if eps is None:
-        eps = jax.random.normal(key, mean.shape, mean.dtype)
-    u = mean + jnp.exp(log_std) * eps
-    log_gauss = jnp.sum(-0.5 * eps**2 - log_std - 0.5 * jnp.log(2 * jnp.pi), axis=-1)
-    # log |d tanh(u)/du| = log(1 − tanh²u) = 2 (log 2 − u − softplus(−2u)), stable for large |u|
-    log_det = jnp.sum(2.0 * (jnp.log(2.0) - u - jax.nn.softplus(-2.0 * u)), axis=-1)
-    return jnp.tanh(u), log_gauss - log_det
-
-
-def greedy_action(actor: Params, obs: jax.Array) -> jax.Array:
-    """tanh of the Gaussian's mean: the deterministic action used for evaluation."""
-    return jnp.tanh(actor_dist(actor, obs)[0])
 
 
 def q_values(critic: Params, obs: jax.Array, act: jax.Array) -> jax.Array:

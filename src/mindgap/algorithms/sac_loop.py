@@ -12,7 +12,7 @@ chunk over seeds never executes branches it does not need.
 
 A learned reward with an absorbing state (Kostrikov et al. 2019; PEBBLE/DRLHP with
 ``absorbing``) passes ``absorbing_fn``: terminal transitions are then stored with the
-bonus ``γ r_abs / (1 − γ)`` (:func:`~mindgap.feedback.replay.terminal_bonus`), the value of
+bonus ``γ r_abs / (1 − γ)`` (:func:`~mindgap.data.replay.terminal_bonus`), the value of
 the state the episode ends in, so arriving at the goal is not worth less than hovering
 next to it. Other reward functions keep their own signature and need nothing new.
 """
@@ -25,10 +25,12 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain import observe, reset, step
-from ..feedback.replay import Replay, replay_add, replay_init, replay_sample, terminal_bonus
+from ..data.batch import Batch
+from ..data.replay import Replay, replay_add, replay_init, replay_sample, terminal_bonus
+from ..envs.interface import Env
+from ..models.actor import greedy_action, sample_action
 from .colored_noise import colored_noise
-from .sac import Batch, SACConfig, SACState, greedy_action, sac_init, sac_update, sample_action
+from .sac import SACConfig, SACState, sac_init, sac_update
 
 PHASES = ("random", "explore", "train")
 BONUS_POOL = 256  # buffer states the training-time state-entropy bonus measures distances to
@@ -39,20 +41,26 @@ class LoopState(NamedTuple):
 
     sac: SACState
     replay: Replay
-    env: object  # TerrainState
+    env: object  # the world's state
+    t: jax.Array  # steps taken in the current episode
     key: jax.Array
     steps: jax.Array
     noise: jax.Array  # [noise_length, a]: this episode's coloured noise ([0, a] with white noise)
 
 
-def loop_init(key: jax.Array, world_params, cfg: SACConfig, capacity: int) -> LoopState:
+def dims(env: Env) -> tuple[int, int]:
+    """(observation, action) dimensions of ``env``, from its spaces."""
+    return env.observation_space.dim, env.action_space.dim
+
+
+def loop_init(key: jax.Array, env: Env, world_params, cfg: SACConfig, capacity: int) -> LoopState:
     k_sac, k_env, k_run = jax.random.split(key, 3)
-    env = reset(k_env, world_params)
-    obs_dim, act_dim = 2, 2
+    obs_dim, act_dim = dims(env)
     return LoopState(
         sac_init(k_sac, obs_dim, act_dim, cfg),
         replay_init(capacity, obs_dim, act_dim),
-        env,
+        env.reset(k_env, world_params),
+        jnp.zeros((), jnp.int32),
         k_run,
         jnp.zeros((), jnp.int32),
         jnp.zeros((cfg.noise_length if cfg.noise_color > 0 else 0, act_dim), jnp.float32),
@@ -100,9 +108,10 @@ def kth_smallest(d: jax.Array, k: int) -> jax.Array:
     return jax.lax.fori_loop(0, k, body, (d, jnp.zeros(d.shape[0], d.dtype)))[1]
 
 
-@partial(jax.jit, static_argnames=("n_steps", "cfg", "phase", "reward_fn", "knn", "absorbing_fn"))
+@partial(jax.jit, static_argnames=("env", "n_steps", "cfg", "phase", "reward_fn", "knn", "absorbing_fn"))
 def run_chunk(
     ls: LoopState,
+    env: Env,
     world_params,
     reward_params,
     *,
@@ -128,21 +137,21 @@ def run_chunk(
 
     def body(ls: LoopState, _):
         key, k_act, k_env, k_reset, k_upd = jax.random.split(ls.key, 5)
-        obs = observe(ls.env, world_params)
+        obs = env.observe(ls.env, world_params)
         noise, eps = ls.noise, None  # eps None: white noise
         if cfg.noise_color > 0:  # a fresh sequence at each episode start (and every noise_length steps)
-            i = ls.env.t % cfg.noise_length
+            i = ls.t % cfg.noise_length
             fresh = colored_noise(jax.random.fold_in(k_act, 1), cfg.noise_color, cfg.noise_length, noise.shape[1])
             noise = jnp.where(i == 0, fresh, noise)
             eps = noise[i]
         if phase != "random":
             act = sample_action(ls.sac.params.actor, obs, k_act, eps)[0]
         elif eps is None:
-            act = jax.random.uniform(k_act, (2,), minval=-1.0, maxval=1.0)
+            act = jax.random.uniform(k_act, (noise.shape[1],), minval=-1.0, maxval=1.0)
         else:
             act = jnp.tanh(eps)
-        out = step(k_env, ls.env, act, world_params)
-        next_obs = observe(out.state, world_params)
+        out = env.step(k_env, ls.env, act, world_params)
+        next_obs = env.observe(out.state, world_params)
         if reward_fn is None:
             r = out.reward
         else:
@@ -150,8 +159,9 @@ def run_chunk(
             if absorbing_fn is not None:
                 r_abs = absorbing_fn(reward_params, next_obs[None])[0]
                 r = r + jnp.where(out.terminated, terminal_bonus(r_abs, cfg.gamma), 0.0)
-        replay = replay_add(ls.replay, obs, act, next_obs, out.reward, r, out.terminated, ls.env.t)
-        env = jax.tree.map(lambda a, b: jnp.where(out.state.done, a, b), reset(k_reset, world_params), out.state)
+        replay = replay_add(ls.replay, obs, act, next_obs, out.reward, r, out.terminated, ls.t)
+        done = out.terminated | out.truncated
+        state = jax.tree.map(lambda a, b: jnp.where(done, a, b), env.reset(k_reset, world_params), out.state)
         sac = ls.sac
         if phase != "random":
 
@@ -170,26 +180,49 @@ def run_chunk(
                 return sac_update(sac, batch, k_sac, cfg)[0], None
 
             sac, _ = jax.lax.scan(update, sac, jax.random.split(k_upd, cfg.utd))
-        return LoopState(sac, replay, env, key, ls.steps + 1, noise), None
+        t = jnp.where(done, 0, ls.t + 1)
+        return LoopState(sac, replay, state, t, key, ls.steps + 1, noise), None
 
     ls, _ = jax.lax.scan(body, ls, None, length=n_steps)
     return ls
 
 
-def _actor_policy(pp, pos):
-    actor, size = pp
-    return greedy_action(actor, 2.0 * pos / size - 1.0)
+def _greedy(actor, obs):
+    return greedy_action(actor, obs)
 
 
-def evaluate(key: jax.Array, actor, world_params, episodes: int):
+def evaluate(key: jax.Array, env: Env, actor, world_params, episodes: int, horizon: int):
     """Greedy-policy rollouts under the world's true reward.
 
     Returns:
-        (returns [episodes], positions [episodes, T+1, 2], alive [episodes, T]).
+        (returns [episodes], observations [episodes, T+1, d], alive [episodes, T]).
     """
-    from ..planning.terrain import rollouts
+    obs, rew, alive = rollouts(key, env, world_params, _greedy, actor, episodes, horizon)
+    return rew.sum(-1), obs, alive
 
-    h, w = world_params.grid.shape
-    size = jnp.array([w, h], jnp.float32)
-    pos, rew, alive = rollouts(key, world_params, _actor_policy, episodes, (actor, size))
-    return rew.sum(-1), pos, alive
+
+@partial(jax.jit, static_argnames=("env", "policy", "count", "horizon"))
+def rollouts(key: jax.Array, env: Env, params, policy, policy_params, count: int, horizon: int):
+    """``count`` episodes of ``horizon`` steps of ``policy(policy_params, obs) → action``.
+
+    An episode that ends early stays where it ended, earning nothing more.
+
+    Returns:
+        (observations [count, T+1, d], rewards [count, T], alive [count, T] — the step happened).
+    """
+
+    def one(k):
+        k0, k1 = jax.random.split(k)
+        s0 = env.reset(k0, params)
+
+        def body(carry, kk):
+            s, done = carry
+            out = env.step(kk, s, policy(policy_params, env.observe(s, params)), params)
+            nxt = jax.tree.map(lambda a, b: jnp.where(done, a, b), s, out.state)
+            r = jnp.where(done, 0.0, out.reward)
+            return (nxt, done | out.terminated | out.truncated), (env.observe(nxt, params), r, ~done)
+
+        _, (obs, rew, alive) = jax.lax.scan(body, (s0, jnp.zeros((), bool)), jax.random.split(k1, horizon))
+        return jnp.concatenate([env.observe(s0, params)[None], obs]), rew, alive
+
+    return jax.vmap(one)(jax.random.split(key, count))

@@ -63,11 +63,11 @@ def run(args: argparse.Namespace) -> int:
 
     from .. import rng
     from .._io import atomic_write
-    from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, surrogate_maps, train
+    from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, train
+    from ..algorithms.eps_maps import surrogate_maps
+    from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
     from ..envs.terrain import load_world
     from ..plotting.terrain import save_fields
-    from ..teachers.expectation import expectation_teacher
-    from ..teachers.expected_policy import ExpectedPolicyConfig
     from ..teachers.preference import TeacherConfig
     from .learn import fill_from_preset, sac_config, write_outputs
 
@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     )
     carry = res["carry"]
     scores = explicability_scores(
-        rng.key(20_000 + args.seed), world.params, person, carry.loop.sac.params.actor, args.rollouts
+        rng.key(20_000 + args.seed), world, person, carry.loop.sac.params.actor, args.rollouts
     )
     atomic_write(args.out / "explicability.json", json.dumps(scores, indent=2))
     label = f"{cfg.method} (λ {cfg.lam:g}, {args.person} person)" if cfg.method == "eps" else "drlhp (expectations)"

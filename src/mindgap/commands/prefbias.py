@@ -13,7 +13,7 @@ import argparse
 
 from ..algorithms.prefbias import PrefBiasLoopConfig
 from ..algorithms.prefbias_inference import PrefBiasConfig
-from ..feedback.prefbias_queries import SAMPLERS
+from ..algorithms.prefbias_queries import SAMPLERS
 from .learn import add_run_flags
 
 
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..algorithms.prefbias import prefbias_config, train
     from ..envs.terrain import load_world
-    from ..models.prefbias_nets import table_noise_map
+    from ..planning.terrain_maps import noise_maps, table_noise_map
     from ..plotting.terrain import save_fields
     from ..teachers.preference import TeacherConfig
     from .learn import fill_from_preset, sac_config, write_outputs
@@ -113,10 +113,13 @@ def run(args: argparse.Namespace) -> int:
         fresh=args.fresh,
     )
     label = f"prefbias ({teacher} teacher)"
-    learned = res["belief_noise"].mean(0)  # NaN on walls
+    belief_noise, dynamics_noise = (
+        np.asarray(m) for m in noise_maps(res["carry"], world.params, cfg.prefbias.dynamics.min_std)
+    )
+    learned = belief_noise.mean(0)  # NaN on walls
     person = world.belief(args.belief) if teacher == "biased" else world.params
     target = np.asarray(table_noise_map(person))
-    rms = float(np.sqrt(np.nanmean((res["belief_noise"] - target) ** 2, axis=(1, 2))).mean())
+    rms = float(np.sqrt(np.nanmean((belief_noise - target) ** 2, axis=(1, 2))).mean())
     summary = write_outputs(
         args.out,
         world,
@@ -132,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         args.out / "belief.png",
         world.params,
         [
-            ("agent's dynamics model f_ψ", res["dynamics_noise"].mean(0)),
+            ("agent's dynamics model f_ψ", dynamics_noise.mean(0)),
             (f"learned belief f_φ ({args.seeds} seed(s))", learned),
             ("the person's belief" if teacher == "biased" else "true dynamics", target),
         ],

@@ -5,7 +5,7 @@
   engine's ``sac``, the same steps, chunks, evaluation and SAC settings), and Policy
   Shaping — the normalised product of the SAC and DRLHP policies of the same seed
   (:mod:`~mindgap.algorithms.policy_shaping`), which trains nothing of its own.
-* **The simulated person** of each world (:func:`~mindgap.teachers.expectation.expectation_teacher`):
+* **The simulated person** of each world (:func:`~mindgap.algorithms.expected_policy.expectation_teacher`):
   the world's belief and an expected policy π_H trained in it, cached on disk. Its job,
   ``WORLD/person``, records the routes the person expects (π_H's greedy rollouts in the
   world as they imagine it: Fig. 27's left column), what obeying them would earn in the
@@ -31,7 +31,9 @@ import numpy as np
 from .. import rng
 from ..algorithms import eps as eps_alg
 from ..algorithms import pbrl
-from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, surrogate_maps
+from ..algorithms.eps import EPSConfig, eps_config, explicability_scores
+from ..algorithms.eps_maps import surrogate_maps
+from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
 from ..algorithms.explicability import explicability
 from ..algorithms.policy_shaping import ShapedPolicy, shaped_dist, shaped_position_policy
 from ..algorithms.sac import sac_init
@@ -40,8 +42,6 @@ from ..checkpoint import load_pytree, save_pytree
 from ..envs.terrain import load_world
 from ..planning.terrain import rollouts
 from ..planning.terrain_check import check_world
-from ..teachers.expectation import expectation_teacher
-from ..teachers.expected_policy import ExpectedPolicyConfig
 from . import prefbias_common as pc
 from ._runfolder import RunFolder
 
@@ -167,7 +167,7 @@ def learned_record(world, person, learn: EPSLearners, res: dict, seed: int = 0) 
     final = np.asarray(res["final_returns"], np.float64)
     if not np.all(np.isfinite(final)):
         raise FloatingPointError("non-finite returns: the run diverged")
-    scores = explicability_scores(rng.key(20_000 + seed), world.params, person, res["actor"], learn.rollouts)
+    scores = explicability_scores(rng.key(20_000 + seed), world, person, res["actor"], learn.rollouts)
     rec = {
         "seeds": int(final.shape[0]),
         "curve": [[int(s), int(t), float(r), int(q)] for s, t, r, q in res["curve"]],
@@ -230,7 +230,7 @@ def _shaping_record(folder: RunFolder, world, person, learn: EPSLearners, job: p
         final.append(float(np.asarray(rew).sum(-1).mean()))
         paths.append(_cut(pos, alive, learn.paths))
     scores = explicability_scores(
-        rng.key(20_000 + learn.sac.seed), world.params, person, policy, learn.rollouts, agent_dist=shaped_dist
+        rng.key(20_000 + learn.sac.seed), world, person, policy, learn.rollouts, agent_dist=shaped_dist
     )
     return {"seeds": seeds, "curve": [], "final": final, **_paths_and_routes(world, paths), **_scores(scores)}
 
@@ -244,9 +244,10 @@ def _cut(pos, alive, count: int) -> list[np.ndarray]:
 def _person_record(world, person, learn: EPSLearners) -> dict:
     """The routes the person expects, what obeying them earns, and the optimal route."""
     k_exp, k_true, k_score = jax.random.split(rng.key(40_000), 3)
-    _, pos, alive = evaluate(k_exp, person.policy, person.belief, max(learn.paths, 20))
-    in_truth, _, _ = evaluate(k_true, person.policy, world.params, 20)
-    own = explicability(k_score, world.params, person.belief, person.policy, person.policy, learn.rollouts)
+    _, obs, alive = evaluate(k_exp, world.env, person.policy, person.belief, max(learn.paths, 20), world.horizon)
+    pos = world.trace(obs)
+    in_truth, _, _ = evaluate(k_true, world.env, person.policy, world.params, 20, world.horizon)
+    own = explicability(k_score, world, person.belief, person.policy, person.policy, learn.rollouts)
     chk = check_world(world, n=learn.plan_resolution, count=100)
     return {
         "done": f"π_H return in truth {float(np.mean(in_truth)):.1f}",

@@ -36,10 +36,11 @@ from ..envs.terrain.dynamics import sample_next
 from ..envs.terrain.layout import GOAL, PIT, WALL
 from ..envs.terrain.params import TerrainState
 from ..envs.terrain.world import reward as true_reward
-from ..models.prefbias_nets import posterior_reward, table_noise_map
+from ..models.prefbias_nets import posterior_reward
 from ..models.reward_ensemble import RewardConfig, ensemble_reward
 from ..planning.terrain import compass_actions, rollouts, route_stats
 from ..planning.terrain_check import check_world
+from ..planning.terrain_maps import noise_maps, table_noise_map
 from ._runfolder import RunFolder
 
 # ---------------------------------------------------------------------------------------
@@ -215,6 +216,12 @@ def _reference(world, cfg: ReferenceConfig) -> dict:
     }
 
 
+def learned_noise(res: dict, world, cfg: PrefBiasLoopConfig) -> tuple[np.ndarray, np.ndarray]:
+    """A PrefBias run's learned belief f_φ and agent model f_ψ as noise maps [seeds, H, W] (NaN on walls)."""
+    belief, agent = noise_maps(res["carry"], world.params, cfg.prefbias.dynamics.min_std)
+    return np.asarray(belief), np.asarray(agent)
+
+
 def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: bool) -> dict:
     """Train every seed of one learner (vmapped, checkpointed in ``out``) and measure it."""
     kw = dict(seeds=seeds, out=out, progress=progress, fresh=fresh)
@@ -238,10 +245,11 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
     }
     if job.method == "prefbias":
         person = np.asarray(table_noise_map(world.belief()))
-        rec["belief_error"] = noise_rms_error(res["belief_noise"], person).tolist()
-        rec["dynamics_error"] = noise_rms_error(res["dynamics_noise"], person).tolist()
-        rec["belief_map"] = nan_to_none(res["belief_noise"].mean(0))  # NaN on walls in every seed
-        rec["dynamics_map"] = nan_to_none(res["dynamics_noise"].mean(0))
+        belief, agent = learned_noise(res, world, job.cfg)
+        rec["belief_error"] = noise_rms_error(belief, person).tolist()
+        rec["dynamics_error"] = noise_rms_error(agent, person).tolist()
+        rec["belief_map"] = nan_to_none(belief.mean(0))  # NaN on walls in every seed
+        rec["dynamics_map"] = nan_to_none(agent.mean(0))
     return rec
 
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..algorithms.prefbias_inference import BELIEF_PRIORS
 from ..envs.terrain import load_world
-from ..models.prefbias_nets import table_noise_map
+from ..planning.terrain_maps import table_noise_map
 from ..plotting.learning import save_learning_curves
 from ..plotting.terrain import save_fields
 from . import prefbias_common as pc

@@ -4,7 +4,7 @@ Each feedback round keeps K of 3K random pairs of segments by ``uniform`` (no sc
 ``disagreement`` (spread of the predicted preference over posterior draws), ``entropy``
 (binary entropy of their mean) or ``preference_disagreement`` (KL between the preference
 predicted with the agent's dynamics f_ψ and with the learned belief f_φ, §3.3.3.3); see
-:mod:`~mindgap.feedback.prefbias_queries`. Same biased person, budget and schedule for all;
+:mod:`~mindgap.algorithms.prefbias_queries`. Same biased person, budget and schedule for all;
 a SAC oracle and a random policy for the normalised score. The dissertation found
 preference disagreement slightly better, "but not much".
 
@@ -20,8 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from ..algorithms.prefbias_queries import SAMPLERS
 from ..envs.terrain import load_world
-from ..feedback.prefbias_queries import SAMPLERS
 from ..plotting.learning import save_learning_curves
 from . import prefbias_common as pc
 from ._runfolder import to_jsonable, write_csv

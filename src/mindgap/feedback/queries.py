@@ -6,7 +6,9 @@ Draw ``candidates × K`` random pairs and keep the K that score highest:
 * ``disagreement`` — the standard deviation over ensemble members of P(a ≻ b);
 * ``entropy`` — the binary entropy of the members' mean P(a ≻ b).
 
-PrefBias adds ``preference disagreement`` on top of the same interface.
+A learner supplies the members' P(a ≻ b) as a function (``probs_fn``), so this module knows
+no model: PEBBLE's ensemble, PrefBias's posterior draws and EPS's u_H ensemble all use it.
+PrefBias adds ``preference disagreement`` on top (:mod:`~mindgap.algorithms.prefbias_queries`).
 """
 
 from __future__ import annotations
@@ -14,9 +16,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ..models.reward_ensemble import preference_probs
-from .replay import Replay
-from .segments import sample_segments, take
+from ..data.replay import Replay
+from ..data.segments import sample_segments, take
 
 SAMPLERS = ("uniform", "disagreement", "entropy")
 
@@ -33,12 +34,33 @@ def query_scores(probs: jax.Array, sampler: str) -> jax.Array:
     raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
 
 
-def select_queries(key, buf: Replay, reward_params, k: int, length: int, sampler: str, candidates: int):
-    """K pairs of segments to show the person. Returns (seg_a, seg_b), each [K, L, ·]."""
+def candidate_pairs(ka, kb, buf: Replay, count: int, length: int, absorbing: bool = False):
+    """``count`` random pairs of segments of ``length`` steps, side a drawn with ``ka``, side b with ``kb``."""
+    return sample_segments(buf, ka, count, length, absorbing), sample_segments(buf, kb, count, length, absorbing)
+
+
+def keep_best(seg_a, seg_b, scores: jax.Array, k: int):
+    """The ``k`` pairs with the highest ``scores [M]``."""
+    top = jax.lax.top_k(scores, k)[1]
+    return take(seg_a, top), take(seg_b, top)
+
+
+def select_queries(
+    key, buf: Replay, probs_fn, k: int, length: int, sampler: str, candidates: int, absorbing: bool = False
+):
+    """K pairs of segments to show the person.
+
+    Args:
+        probs_fn: ``(seg_a, seg_b) → P(a ≻ b) [E, M]`` of each of the learner's E members.
+        absorbing: keep the steps after a terminal transition as absorbing steps
+            (:class:`~mindgap.data.segments.AbsorbingSegments`).
+
+    Returns:
+        (seg_a, seg_b), each [K, L, ·].
+    """
     ka, kb = jax.random.split(key)
     m = k * (1 if sampler == "uniform" else candidates)
-    seg_a, seg_b = sample_segments(buf, ka, m, length), sample_segments(buf, kb, m, length)
+    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, absorbing)
     if sampler == "uniform":
         return seg_a, seg_b
-    top = jax.lax.top_k(query_scores(preference_probs(reward_params, seg_a, seg_b), sampler), k)[1]
-    return take(seg_a, top), take(seg_b, top)
+    return keep_best(seg_a, seg_b, query_scores(probs_fn(seg_a, seg_b), sampler), k)

@@ -36,7 +36,6 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain.dynamics import is_wall, move_model
 from .bayes import Gaussian, bnn_local, stddev
 from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, next_state_log_prob, normalise_input, predict
 from .mlp import Params, init_mlp, mlp
@@ -92,7 +91,7 @@ def _head_size(params) -> int:
 def absorbing_value(params, terminal_obs: jax.Array) -> jax.Array:
     """r_abs(s_T) for fixed weights: [..., d] → [...]; zeros without an absorbing head.
 
-    At the posterior mean it is the engine's ``absorbing_fn`` (:func:`~mindgap.feedback.replay.relabel`,
+    At the posterior mean it is the engine's ``absorbing_fn`` (:func:`~mindgap.data.replay.relabel`,
     :func:`~mindgap.algorithms.sac_loop.run_chunk`), read at the state a terminal transition enters.
     """
     m = _head_size(params)
@@ -114,7 +113,7 @@ def absorbing_local(post: Gaussian, terminal_obs: jax.Array, key: jax.Array) -> 
 def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
     """The reward the agent optimises: r_w at the posterior mean ``params = q(w).mean``. [B, ·] → [B].
 
-    Has the signature of the engine's ``reward_fn`` (:func:`~mindgap.feedback.replay.relabel`,
+    Has the signature of the engine's ``reward_fn`` (:func:`~mindgap.data.replay.relabel`,
     :func:`~mindgap.algorithms.sac_loop.run_chunk`).
     """
     del next_obs
@@ -135,50 +134,3 @@ def belief_log_prob_local(post: Gaussian, norm: Norm, obs, act, next_obs, key: j
     """A draw of log f_φ(s' | s, a), φ ~ q(φ), by local reparameterisation (one draw per row): [...]."""
     raw = bnn_local(post, normalise_input(norm, obs, act), key)
     return next_state_log_prob(raw, norm, obs, next_obs, min_std)
-
-
-CROSS_ACTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
-"""The actions :func:`belief_noise_map` averages over: full pushes along each axis."""
-
-
-def _cell_centres(world_params):
-    h, w = world_params.grid.shape
-    rows, cols = jnp.meshgrid(jnp.arange(h), jnp.arange(w), indexing="ij")
-    return rows, cols, jnp.stack([cols, rows], -1).astype(jnp.float32) + 0.5  # [H, W, 2] (x, y)
-
-
-def belief_noise_map(
-    params: Params, norm: Norm, world_params, min_std: float, actions: jax.Array | None = None
-) -> jax.Array:
-    """The belief's predicted noise at each cell of a terrain world, for drawing it on the map.
-
-    At every cell centre, the standard deviation f_φ predicts for the next position,
-    converted from observation units to cells and averaged over the two axes and over
-    ``actions`` [n, 2] (default :data:`CROSS_ACTIONS`). Comparable with the ``noise``
-    column of a :class:`~mindgap.envs.terrain.Dynamics` table.
-
-    Returns:
-        [H, W] float, NaN on walls.
-    """
-    h, w = world_params.grid.shape
-    actions = jnp.asarray(CROSS_ACTIONS if actions is None else actions, jnp.float32)
-    rows, cols, pos = _cell_centres(world_params)
-    scale = jnp.array([w, h], jnp.float32)
-    obs = 2.0 * pos / scale - 1.0  # as envs.terrain.observe
-    obs = jnp.broadcast_to(obs[:, :, None], (h, w, actions.shape[0], 2))
-    act = jnp.broadcast_to(actions, obs.shape)
-    _, std = belief_predict(params, norm, obs, act, min_std)  # [H, W, n, 2], observation units
-    cells = (std * 0.5 * scale).mean((-1, -2))
-    return jnp.where(is_wall(world_params, rows, cols), jnp.nan, cells)
-
-
-def table_noise_map(world_params) -> jax.Array:
-    """The noise scale σ(s) a dynamics table gives each cell centre (terrain noise plus the pit term).
-
-    Pass a world's parameters under a person's belief (``world.belief(name)``) to draw that
-    belief's noise next to :func:`belief_noise_map`, or to measure how far a learned belief is
-    from it. Returns [H, W] in cells, NaN on walls.
-    """
-    rows, cols, pos = _cell_centres(world_params)
-    sigma = jax.vmap(jax.vmap(lambda p: move_model(world_params, p, jnp.zeros(2))[1]))(pos)
-    return jnp.where(is_wall(world_params, rows, cols), jnp.nan, sigma)

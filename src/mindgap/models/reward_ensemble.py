@@ -8,13 +8,13 @@ y ∈ {0, ½, 1}), each on its own minibatches. The agent optimises the members'
 With absorbing states (``reward_init(..., absorbing=...)``; Kostrikov et al. 2019,
 "Discriminator-Actor-Critic") each member also learns a reward ``r_abs`` (tanh-squashed)
 for every step after a terminal transition, and a segment's return is
-``Σ mask·r(s, a) + Σ absorbed·r_abs`` (:class:`~mindgap.feedback.segments.AbsorbingSegments`).
+``Σ mask·r(s, a) + Σ absorbed·r_abs`` (:class:`~mindgap.data.segments.AbsorbingSegments`).
 Why: when reaching the goal ends the episode, a segment that gets there is otherwise
 shorter than one that hovers nearby, and with rewards bounded in (−1, 1) near the goal
 the hovering segment can only score higher — the learned reward then teaches the agent
 never to arrive (termination bias). With absorbing steps every segment has the same
 length and the model learns what being done is worth; the agent's critic values the
-absorbing state at ``r_abs / (1 − γ)`` (:func:`~mindgap.feedback.replay.terminal_bonus`).
+absorbing state at ``r_abs / (1 − γ)`` (:func:`~mindgap.data.replay.terminal_bonus`).
 
 DAC has one absorbing state (``single``: r_abs a learned constant). A world with both a
 goal and pits needs more: with one shared state the pits, far more often reached by early
@@ -39,7 +39,8 @@ import jax
 import jax.numpy as jnp
 import optax
 
-from ..feedback.segments import Segments, absorbed_steps, terminal_obs, with_absorbing
+from ..data.prefs import PrefData
+from ..data.segments import Segments, absorbed_steps, terminal_obs
 from .mlp import Params, init_stack, mlp
 
 
@@ -111,15 +112,6 @@ def absorbing_features(terminal_obs: jax.Array, m: int) -> jax.Array:
     return RBF_GAIN * jnp.where(sq < (RBF_SUPPORT * width) ** 2, bump, 0.0)
 
 
-class PrefData(NamedTuple):
-    """Answered queries, fixed capacity: seg_a, seg_b [Q, L, ·]; label [Q]; count."""
-
-    seg_a: Segments
-    seg_b: Segments
-    label: jax.Array
-    count: jax.Array
-
-
 def reward_init(
     key: jax.Array, obs_dim: int, act_dim: int, cfg: RewardConfig, absorbing: str | None = None
 ) -> RewardState:
@@ -162,7 +154,7 @@ def member_absorbing_rewards(params, terminal_obs: jax.Array) -> jax.Array:
 def absorbing_reward(params, terminal_obs: jax.Array) -> jax.Array:
     """The absorbing-state reward of the members' mean (what the agent optimises): [B, d] → [B].
 
-    The ``absorbing_fn`` of :func:`~mindgap.feedback.replay.relabel` and
+    The ``absorbing_fn`` of :func:`~mindgap.data.replay.relabel` and
     :func:`~mindgap.algorithms.sac_loop.run_chunk`, evaluated at the next observation of
     terminal transitions.
     """
@@ -194,41 +186,6 @@ def bt_loss(params: Params, seg_a: Segments, seg_b: Segments, label: jax.Array, 
     logit = segment_returns(params, seg_a) - segment_returns(params, seg_b)  # [E, K]
     ce = -(label * jax.nn.log_sigmoid(logit) + (1 - label) * jax.nn.log_sigmoid(-logit))
     return jnp.sum(jnp.sum(ce * weight, axis=-1) / jnp.maximum(weight.sum(-1), 1.0))
-
-
-def prefs_init(capacity: int, length: int, obs_dim: int, act_dim: int, absorbing: bool = False) -> PrefData:
-    """An empty store; with ``absorbing`` it keeps the absorbing steps of the segments too."""
-    seg = Segments(
-        jnp.zeros((capacity, length, obs_dim)),
-        jnp.zeros((capacity, length, act_dim)),
-        jnp.zeros((capacity, length, obs_dim)),
-        jnp.zeros((capacity, length), bool),
-    )
-    seg = with_absorbing(seg, absorbing)
-    return PrefData(seg, seg, jnp.zeros(capacity), jnp.zeros((), jnp.int32))
-
-
-def prefs_add(data: PrefData, seg_a: Segments, seg_b: Segments, label: jax.Array, answered: jax.Array) -> PrefData:
-    """Append the answered queries (skipped ones are dropped).
-
-    Segments are stored in the store's own form: absorbing steps are kept only by a store
-    made with ``absorbing=True`` (plain segments added to one have none).
-    """
-    absorbing = hasattr(data.seg_a, "absorbed")
-    seg_a, seg_b = with_absorbing(seg_a, absorbing), with_absorbing(seg_b, absorbing)
-    cap = data.label.shape[0]
-    slot = data.count + jnp.cumsum(answered) - 1
-    slot = jnp.where(answered & (slot < cap), slot, cap)  # cap: out of range, dropped by the scatter
-
-    def put(store, new):
-        return jax.tree.map(lambda s, n: s.at[slot].set(n, mode="drop"), store, new)
-
-    return PrefData(
-        put(data.seg_a, seg_a),
-        put(data.seg_b, seg_b),
-        data.label.at[slot].set(label, mode="drop"),
-        jnp.minimum(data.count + answered.sum(), cap),
-    )
 
 
 def train_reward(state: RewardState, data: PrefData, key: jax.Array, cfg: RewardConfig):

@@ -204,8 +204,10 @@ def route_stats(params: TerrainParams, positions, rewards, alive) -> RouteStats:
     alive_f = np.asarray(alive, np.float64)
     n_steps = alive_f.sum(1)
     ret = np.asarray(rewards).sum(1)
+
     def share(code):
         return float(((np.asarray(terr) == code) * alive_f).sum() / max(n_steps.sum(), 1))
+
     visited = np.concatenate([np.ones_like(alive_f[:, :1]), alive_f], 1) > 0  # start + each step taken
     berth = np.asarray(berth, np.float64)
     return RouteStats(

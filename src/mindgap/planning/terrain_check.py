@@ -17,11 +17,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import rng
+from ..data.segments import Segments
 from ..envs.terrain.dynamics import move_model
 from ..envs.terrain.layout import WALL
 from ..envs.terrain.params import TerrainState
-from ..envs.terrain.world import TerrainWorld, observe
-from ..feedback.segments import Segments
+from ..envs.terrain.world import TERRAIN_ENV, TerrainWorld, observe
 from ..teachers.preference import TeacherConfig, segment_scores
 from .terrain import Plan, RouteStats, plan, plan_action, rollouts, route_stats
 
@@ -126,7 +126,7 @@ def person_score(world_params, belief_params, p: Plan, positions, alive) -> floa
     obs = observe(TerrainState(positions, jnp.zeros((), jnp.int32), False), world_params)
     act = jax.vmap(jax.vmap(lambda q: plan_action(p, q)))(positions[:, :-1])
     seg = Segments(obs[:, :-1], act, obs[:, 1:], jnp.asarray(alive, bool))
-    return float(segment_scores(seg, world_params, belief_params, TeacherConfig()).mean())
+    return float(segment_scores(seg, TERRAIN_ENV, world_params, belief_params, TeacherConfig()).mean())
 
 
 def evaluate(

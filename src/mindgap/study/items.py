@@ -3,7 +3,7 @@
 An item is either a *demonstration* to rate (tabular domains: ``states [n + 1]``,
 ``actions [n]``) or a *pair* of segments to compare (terrain worlds: each segment
 ``obs``, ``act``, ``next_obs`` ``[L, 2]`` and ``mask [L]``, the layout of
-:class:`~mindgap.feedback.segments.Segments`). Items are plain JSON so the store keeps
+:class:`~mindgap.data.segments.Segments`). Items are plain JSON so the store keeps
 exactly what was shown: an export never depends on regenerating them.
 
 Sources:
@@ -206,12 +206,13 @@ def true_returns(params, seg: dict) -> np.ndarray:
     import jax
     import jax.numpy as jnp
 
-    from ..feedback.segments import Segments
+    from ..data.segments import Segments
+    from ..envs.terrain import TERRAIN_ENV
     from ..teachers.preference import TeacherConfig, segment_scores
 
     s = Segments(*(jnp.asarray(seg[k]) for k in ("obs", "act", "next_obs", "mask")))
-    scores = jax.jit(segment_scores, static_argnames="cfg")
-    return np.asarray(scores(s, params, None, cfg=TeacherConfig(use_belief=False)))
+    scores = jax.jit(segment_scores, static_argnames=("env", "cfg"))
+    return np.asarray(scores(s, TERRAIN_ENV, params, None, cfg=TeacherConfig(use_belief=False)))
 
 
 def _terrain_pairs(study: Study) -> list[Item]:

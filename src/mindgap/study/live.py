@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..feedback.segments import Segments
+from ..data.segments import Segments
 from .items import segment_dict
 from .prefs_file import ANSWERS
 from .store import Store

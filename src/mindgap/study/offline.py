@@ -34,8 +34,9 @@ def fit_preferences(prefs, reward_cfg, *, seed: int = 0):
     import jax.numpy as jnp
 
     from .. import rng
-    from ..feedback.segments import Segments
-    from ..models.reward_ensemble import prefs_add, prefs_init, reward_init, train_reward
+    from ..data.prefs import prefs_add, prefs_init
+    from ..data.segments import Segments
+    from ..models.reward_ensemble import reward_init, train_reward
 
     seg_a, seg_b, labels = prefs.arrays()
     n = len(labels)
@@ -103,8 +104,8 @@ def run_offline(args) -> int:
     from .._io import atomic_write
     from ..algorithms.pbrl import method_config
     from ..checkpoint import save_pytree
+    from ..data.segments import Segments
     from ..envs.terrain import load_world
-    from ..feedback.segments import Segments
     from ..models.reward_ensemble import segment_returns
     from .items import true_returns
     from .prefs_file import read_preferences

@@ -29,61 +29,56 @@ Choices:
 
 from __future__ import annotations
 
+import dataclasses
 from functools import partial
-from typing import NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain import TerrainParams, TerrainWorld, log_prob_pos, position
-from ..feedback.segments import Segments
+from ..data.segments import Segments
+from ..envs.interface import Env
+from ..models.actor import actor_dist
 from ..models.mlp import Params
-from .expected_policy import ExpectedPolicyConfig, expected_log_prob, expected_policy
+from ..models.squashed import squashed_log_prob
 from .preference import TeacherConfig, discounted_sum, labels_from_scores
 
 
-class ExpectationTeacher(NamedTuple):
+@partial(jax.tree_util.register_dataclass, data_fields=["belief", "policy"], meta_fields=["env"])
+@dataclasses.dataclass(frozen=True)
+class ExpectationTeacher:
     """The person's model of the agent, as arrays (pass it into jitted code like any pytree).
 
     Attributes:
-        belief: the world under the person's dynamics table T_H.
+        belief: the world's params under the person's dynamics (T_H).
         policy: actor parameters of π_H (:func:`~mindgap.algorithms.sac.actor_dist` reads them).
+        env: the world's functions (static: part of the pytree's structure, not a leaf);
+            ``env.log_prob`` gives log T_H under ``belief``.
     """
 
-    belief: TerrainParams
+    belief: Any
     policy: Params
+    env: Env
 
 
-def expectation_teacher(
-    world: TerrainWorld,
-    belief: str | None = None,
-    *,
-    unbiased: bool = False,
-    policy_cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(),
-    cache_dir=None,
-) -> ExpectationTeacher:
-    """The simulated person of ``world``: belief ``belief`` (default the world's first), π_H from the cache.
-
-    Args:
-        unbiased: the person knows the true dynamics (Fig. 29); ``belief`` is then ignored.
-        policy_cfg: how π_H is trained when the cache does not hold it.
-        cache_dir: cache root (see :func:`~mindgap.teachers.expected_policy.cache_root`).
-    """
-    params = world.params if unbiased else world.belief(belief)
-    return ExpectationTeacher(params, expected_policy(params, policy_cfg, cache_dir))
+def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
+    """log π_H(a|s) of the person's expected policy (a tanh-Gaussian density over actions): [..., ·] → [...]."""
+    mean, log_std = actor_dist(actor, obs)
+    return squashed_log_prob(mean, log_std, act)
 
 
 def step_log_likelihood(teacher: ExpectationTeacher, obs, act, next_obs, floor: float) -> jax.Array:
-    """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, act, next_obs [..., 2] → [...]."""
+    """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, next_obs [..., d], act [..., a] → [...]."""
 
     def one(o, a, o2):
-        s, s2 = position(o, teacher.belief), position(o2, teacher.belief)
-        log_t = jnp.maximum(log_prob_pos(teacher.belief, s, a, s2), floor)
+        log_t = jnp.maximum(teacher.env.log_prob(o, a, o2, teacher.belief), floor)
         log_pi = jnp.maximum(expected_log_prob(teacher.policy, o, a), floor)
         return log_t + log_pi
 
     batch = obs.shape[:-1]
-    flat = jax.vmap(one)(obs.reshape(-1, 2), act.reshape(-1, 2), next_obs.reshape(-1, 2))
+    flat = jax.vmap(one)(
+        obs.reshape(-1, obs.shape[-1]), act.reshape(-1, act.shape[-1]), next_obs.reshape(-1, next_obs.shape[-1])
+    )
     return flat.reshape(batch)
 
 

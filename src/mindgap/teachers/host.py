@@ -1,7 +1,7 @@
 """Teachers that answer outside jitted code: people through the study app, or any Python callable.
 
 A host teacher takes K pairs of segments as NumPy arrays (the layout of
-:class:`~mindgap.feedback.segments.Segments`, ``[K, L, ·]``) and returns
+:class:`~mindgap.data.segments.Segments`, ``[K, L, ·]``) and returns
 ``(labels [K] float32, answered [K] bool)`` with the label convention of
 :func:`mindgap.teachers.preference.answer`: 1 = first preferred, 0 = second, 0.5 = equal.
 The engine (:func:`mindgap.algorithms.pbrl.train`) then runs a feedback round in
@@ -16,7 +16,8 @@ from typing import Protocol, runtime_checkable
 import jax
 import numpy as np
 
-from ..feedback.segments import Segments
+from ..data.segments import Segments
+from ..envs.interface import Env
 from .preference import TeacherConfig, answer
 
 
@@ -36,13 +37,15 @@ class SimulatedHostTeacher:
     None, no mistakes) it answers exactly as the jitted teacher does.
     """
 
-    def __init__(self, world_params, belief_params, cfg: TeacherConfig, *, key: jax.Array, name: str = "simulated"):
-        self.world_params, self.belief_params, self.cfg = world_params, belief_params, cfg
+    def __init__(
+        self, env: Env, world_params, belief_params, cfg: TeacherConfig, *, key: jax.Array, name: str = "simulated"
+    ):
+        self.env, self.world_params, self.belief_params, self.cfg = env, world_params, belief_params, cfg
         self.key, self.name = key, name
         self.calls = 0
 
     def __call__(self, seg_a: Segments, seg_b: Segments) -> tuple[np.ndarray, np.ndarray]:
         self.key, k = jax.random.split(self.key)
         self.calls += 1
-        labels, answered = answer(k, seg_a, seg_b, self.world_params, self.belief_params, self.cfg)
+        labels, answered = answer(k, seg_a, seg_b, self.env, self.world_params, self.belief_params, self.cfg)
         return np.asarray(labels, np.float32), np.asarray(answered, bool)

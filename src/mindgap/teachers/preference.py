@@ -8,7 +8,7 @@ the higher score with Bradley–Terry probability ``σ(β (S₁ − S₂))``. Th
 term is off and this is the ordinary B-Pref teacher.
 
 Only the real steps of a segment (``mask``) count. The absorbing steps after a terminal
-transition (:class:`~mindgap.feedback.segments.AbsorbingSegments`; Kostrikov et al. 2019)
+transition (:class:`~mindgap.data.segments.AbsorbingSegments`; Kostrikov et al. 2019)
 add nothing: after the goal or a pit the true reward is 0 and nothing moves, so there is
 no log T_H term either — the person judges the episode that happened, while the learner
 models the same steps with its absorbing-state reward.
@@ -21,8 +21,8 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain import TerrainState, log_prob_pos, position, reward
-from ..feedback.segments import Segments
+from ..data.segments import Segments
+from ..envs.interface import Env
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,15 +45,16 @@ class TeacherConfig:
     """Include the log T_H term (False: the ordinary B-Pref teacher)."""
 
 
-def segment_scores(seg: Segments, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
-    """The person's score of each segment. seg [K, L, ·] → [K]; absorbing steps score 0."""
+def segment_scores(seg: Segments, env: Env, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
+    """The person's score of each segment. seg [K, L, ·] → [K]; absorbing steps score 0.
+
+    r_H is ``env.reward`` under ``world_params``; log T_H is ``env.log_prob`` under ``belief_params``.
+    """
 
     def step_score(o, a, o2):
-        s, s2 = position(o, world_params), position(o2, world_params)
-        zero = jnp.zeros((), jnp.int32)
-        r = reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world_params)
+        r = env.reward(o, a, o2, world_params)
         if belief_params is not None and cfg.use_belief:
-            r = r + jnp.maximum(log_prob_pos(belief_params, s, a, s2), cfg.log_t_floor)
+            r = r + jnp.maximum(env.log_prob(o, a, o2, belief_params), cfg.log_t_floor)
         return r
 
     per_step = jax.vmap(jax.vmap(step_score))(seg.obs, seg.act, seg.next_obs)  # [K, L]
@@ -67,14 +68,14 @@ def discounted_sum(per_step: jax.Array, mask: jax.Array, gamma: float) -> jax.Ar
     return jnp.sum(jnp.where(mask, per_step, 0.0) * weights, axis=-1)
 
 
-def answer(key: jax.Array, seg_a: Segments, seg_b: Segments, world_params, belief_params, cfg: TeacherConfig):
+def answer(key: jax.Array, seg_a: Segments, seg_b: Segments, env: Env, world_params, belief_params, cfg: TeacherConfig):
     """Labels for K queries: 1 = first preferred, 0 = second, 0.5 = equal; and which were answered.
 
     Returns:
         (labels [K] float32, answered [K] bool).
     """
-    sa = segment_scores(seg_a, world_params, belief_params, cfg)
-    sb = segment_scores(seg_b, world_params, belief_params, cfg)
+    sa = segment_scores(seg_a, env, world_params, belief_params, cfg)
+    sb = segment_scores(seg_b, env, world_params, belief_params, cfg)
     return labels_from_scores(key, sa, sb, cfg)
 
 

@@ -1,5 +1,6 @@
 """Continuous 2-D terrain worlds (§3.2): ice, sand, pits, walls; pure JAX, exact densities."""
 
+from ..interface import Step as Step
 from .dynamics import log_prob_pos as log_prob_pos
 from .dynamics import sample_next as sample_next
 from .files import NAMED_WORLDS as NAMED_WORLDS
@@ -11,9 +12,9 @@ from .layout import LayoutError as LayoutError
 from .layout import parse_layout as parse_layout
 from .params import Dynamics as Dynamics
 from .params import Rewards as Rewards
-from .params import Step as Step
 from .params import TerrainParams as TerrainParams
 from .params import TerrainState as TerrainState
+from .world import TERRAIN_ENV as TERRAIN_ENV
 from .world import TerrainWorld as TerrainWorld
 from .world import log_prob as log_prob
 from .world import observe as observe

@@ -159,36 +159,6 @@ class TerrainState(NamedTuple):
     done: jax.Array
 
 
-class Step(NamedTuple):
-    """What :func:`~mindgap.envs.terrain.world.step` returns.
-
-    ``terminated``: entered a pit or the goal on this step; ``truncated``: reached the
-    horizon without that. Stepping a finished state leaves it unchanged with reward 0.
-    """
-
-    state: TerrainState
-    reward: jax.Array
-    terminated: jax.Array
-    truncated: jax.Array
-
-
-def identity_leaves(tree) -> list:
-    """The array leaves of ``tree`` (worlds, beliefs, persons) that identify it in records and caches.
-
-    Every leaf, in ``jax.tree.leaves`` order, except a :class:`Dynamics` table's ``slide``
-    flag where it is 0: the slide rule came after the first run folders and cached expected
-    policies were written, and leaving the default out keeps a bump world's fingerprint
-    what it was, so those folders still resume and those caches are still found.
-    """
-    leaves = []
-    for path, leaf in jax.tree_util.tree_flatten_with_path(tree)[0]:
-        last = path[-1] if path else None
-        if isinstance(last, jax.tree_util.GetAttrKey) and last.name == "slide" and not np.any(np.asarray(leaf)):
-            continue
-        leaves.append(leaf)
-    return leaves
-
-
 def as_arrays(dyn: Dynamics) -> Dynamics:
     return Dynamics(*(jnp.asarray(x, dtype=jnp.float32) for x in dyn))
 

@@ -17,9 +17,10 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
+from ..interface import Box, Env, Step, pick_belief
 from .dynamics import OFFSETS, cell_of, is_wall, log_prob_pos, sample_next, terrain_at
 from .layout import GOAL, PIT, Layout
-from .params import Dynamics, Step, TerrainParams, TerrainState
+from .params import Dynamics, TerrainParams, TerrainState
 
 
 def reset(key: jax.Array, params: TerrainParams) -> TerrainState:
@@ -98,6 +99,30 @@ def position(obs: jax.Array, params: TerrainParams) -> jax.Array:
     return (obs + 1.0) * 0.5 * jnp.array([w, h], obs.dtype)
 
 
+def obs_reward(obs: jax.Array, action: jax.Array, next_obs: jax.Array, params: TerrainParams) -> jax.Array:
+    """:func:`reward` of a transition given as observations (it depends on positions only)."""
+    zero = jnp.zeros((), jnp.int32)
+    s, s2 = position(obs, params), position(next_obs, params)
+    return reward(TerrainState(s, zero, False), action, TerrainState(s2, zero, False), params)
+
+
+def obs_log_prob(obs: jax.Array, action: jax.Array, next_obs: jax.Array, params: TerrainParams) -> jax.Array:
+    """The exact log density of a live transition given as observations (:func:`log_prob_pos`)."""
+    return log_prob_pos(params, position(obs, params), action, position(next_obs, params))
+
+
+TERRAIN_ENV = Env(
+    reset=reset,
+    step=step,
+    observe=observe,
+    observation_space=Box((2,)),
+    action_space=Box((2,)),
+    reward=obs_reward,
+    log_prob=obs_log_prob,
+)
+"""The terrain worlds as an :class:`~mindgap.envs.interface.Env` (one object: learners compile once for all of them)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class TerrainWorld:
     """A named world: its layout, parameters under the true dynamics, and named beliefs.
@@ -122,12 +147,30 @@ class TerrainWorld:
 
     def belief(self, name: str | None = None) -> TerrainParams:
         """Parameters of the world as a person with belief ``name`` sees it (default: the first)."""
-        if not self.beliefs:
-            raise ValueError(f"world {self.name!r} declares no belief")
-        name = name or next(iter(self.beliefs))
-        if name not in self.beliefs:
-            raise ValueError(f"world {self.name!r} has no belief {name!r}; it has: {', '.join(self.beliefs)}")
-        return self.params.with_dynamics(self.beliefs[name])
+        return self.params.with_dynamics(pick_belief(self.name, self.beliefs, name))
+
+    @property
+    def env(self) -> Env:
+        """The world's functions (:data:`TERRAIN_ENV`)."""
+        return TERRAIN_ENV
+
+    @property
+    def horizon(self) -> int:
+        """Steps of an episode at most."""
+        return int(self.params.horizon)
+
+    def fingerprint_tree(self):
+        """What a run record hashes to recognise this world: its parameters and belief tables."""
+        return (self.params, self.beliefs)
+
+    def trace(self, obs):
+        """Positions along observed paths ``obs [..., T+1, 2]`` (for drawing on the map)."""
+        return position(obs, self.params)
+
+    def obs_units(self) -> jax.Array:
+        """[2] cells per unit of observation along (x, y): the observation maps the map onto [−1, 1]²."""
+        h, w = self.params.grid.shape
+        return jnp.array([w, h], jnp.float32) / 2.0
 
     @property
     def true_dynamics(self) -> Dynamics:

@@ -20,12 +20,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from ..algorithms.prefbias_inference import PrefBiasConfig, PrefBiasState, preference_prob
+from ..data.replay import Replay
+from ..data.segments import Segments
+from ..feedback.queries import candidate_pairs, keep_best, query_scores
 from ..models.bayes import sample_params
 from ..models.gaussian_dynamics import DynamicsModel
-from .queries import query_scores
-from .replay import Replay
-from .segments import Segments, sample_segments, take
+from .prefbias_inference import PrefBiasConfig, PrefBiasState, preference_prob
 
 SAMPLERS = ("uniform", "disagreement", "entropy", "preference_disagreement")
 
@@ -97,16 +97,14 @@ def select_queries(
     Jittable with ``k, length, sampler, cfg, candidates, samples`` static.
 
     Returns:
-        (seg_a, seg_b), each [K, L, ·]: :class:`~mindgap.feedback.segments.AbsorbingSegments`
+        (seg_a, seg_b), each [K, L, ·]: :class:`~mindgap.data.segments.AbsorbingSegments`
         when ``cfg.absorbing``, else plain segments.
     """
     if sampler not in SAMPLERS:
         raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
     ka, kb, ks = jax.random.split(key, 3)
     m = k * (1 if sampler == "uniform" else candidates)
-    seg_a = sample_segments(buf, ka, m, length, absorbing=cfg.absorbing)
-    seg_b = sample_segments(buf, kb, m, length, absorbing=cfg.absorbing)
+    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, cfg.absorbing)
     if sampler == "uniform":
         return seg_a, seg_b
-    top = jax.lax.top_k(candidate_scores(state, dynamics, seg_a, seg_b, ks, sampler, cfg, samples), k)[1]
-    return take(seg_a, top), take(seg_b, top)
+    return keep_best(seg_a, seg_b, candidate_scores(state, dynamics, seg_a, seg_b, ks, sampler, cfg, samples), k)

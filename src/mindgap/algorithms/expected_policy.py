@@ -34,12 +34,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import rng
-from ..algorithms.sac import SACConfig, actor_dist
 from ..checkpoint import load_pytree, save_pytree
-from ..envs.terrain import TerrainParams
-from ..envs.terrain.params import identity_leaves
+from ..data.fingerprint import identity_leaves
+from ..envs.interface import Env, World
 from ..models.mlp import Params, init_mlp
-from ..models.squashed import squashed_log_prob
+from ..teachers.expectation import ExpectationTeacher
+from .sac import SACConfig
+from .sac_loop import dims, evaluate, loop_init, run_chunk
 
 CACHE_VERSION = 1
 """Part of every cache key: raise it when the stored format or the training changes meaning."""
@@ -76,12 +77,6 @@ class ExpectedPolicyConfig:
             raise ValueError("seeds and eval_episodes must be at least 1")
 
 
-def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
-    """log π_H(a|s) of the person's expected policy (a tanh-Gaussian density over actions): [..., ·] → [...]."""
-    mean, log_std = actor_dist(actor, obs)
-    return squashed_log_prob(mean, log_std, act)
-
-
 def cache_root(cache_dir: str | Path | None = None) -> Path:
     """``cache_dir``, else ``$MINDGAP_CACHE``, else ``~/.cache/mindgap``."""
     if cache_dir is not None:
@@ -89,7 +84,7 @@ def cache_root(cache_dir: str | Path | None = None) -> Path:
     return Path(os.environ.get("MINDGAP_CACHE", Path.home() / ".cache" / "mindgap")).expanduser()
 
 
-def cache_key(belief_params: TerrainParams, cfg: ExpectedPolicyConfig) -> str:
+def cache_key(belief_params, cfg: ExpectedPolicyConfig) -> str:
     """Hash of the belief world's arrays (shapes and dtypes included) and of the training configuration."""
     h = hashlib.sha256(f"expected-policy v{CACHE_VERSION}".encode())
     for leaf in identity_leaves(belief_params):
@@ -100,41 +95,44 @@ def cache_key(belief_params: TerrainParams, cfg: ExpectedPolicyConfig) -> str:
     return h.hexdigest()[:20]
 
 
-def _actor_template(cfg: ExpectedPolicyConfig) -> Params:
-    return init_mlp(jax.random.key(0), (2, *cfg.sac.hidden, 4))
+def _actor_template(env: Env, cfg: ExpectedPolicyConfig) -> Params:
+    obs_dim, act_dim = dims(env)
+    return init_mlp(jax.random.key(0), (obs_dim, *cfg.sac.hidden, 2 * act_dim))
 
 
-def train_expected_policy(belief_params: TerrainParams, cfg: ExpectedPolicyConfig) -> tuple[Params, np.ndarray]:
+def train_expected_policy(world: World, belief_params, cfg: ExpectedPolicyConfig) -> tuple[Params, np.ndarray]:
     """SAC on the belief world's own reward, ``cfg.seeds`` seeds at once; the best seed's actor.
 
     Returns:
         (actor parameters, mean greedy return of every seed in the belief world [seeds]; NaN
         for a single seed, which is not evaluated).
     """
-    from ..algorithms.sac_loop import evaluate, loop_init, run_chunk
-
     cfg.check()
     keys = jax.random.split(rng.key(cfg.seed), cfg.seeds)
-    init = jax.jit(jax.vmap(lambda k, p: loop_init(k, p, cfg.sac, cfg.total_steps), (0, None)))
+    env = world.env
+    init = jax.jit(jax.vmap(lambda k, p: loop_init(k, env, p, cfg.sac, cfg.total_steps), (0, None)))
     loop = init(keys, belief_params)
     for start in range(0, cfg.total_steps, cfg.chunk):
         phase = "random" if start < cfg.sac.learning_starts else "train"
-        loop = jax.vmap(lambda ls: run_chunk(ls, belief_params, None, n_steps=cfg.chunk, cfg=cfg.sac, phase=phase))(
-            loop
-        )
+        loop = jax.vmap(
+            lambda ls: run_chunk(ls, env, belief_params, None, n_steps=cfg.chunk, cfg=cfg.sac, phase=phase)
+        )(loop)
     actors = [jax.tree.map(lambda x, i=i: x[i], loop.sac.params.actor) for i in range(cfg.seeds)]
     if cfg.seeds == 1:
         return actors[0], np.full(1, np.nan)  # nothing to rank
     eval_keys = jax.random.split(rng.key(cfg.seed + 1), cfg.seeds)
     # one seed at a time: the compiled rollouts of an unbatched actor serve every seed
     returns = np.array(
-        [float(evaluate(k, a, belief_params, cfg.eval_episodes)[0].mean()) for k, a in zip(eval_keys, actors)]
+        [
+            float(evaluate(k, env, a, belief_params, cfg.eval_episodes, world.horizon)[0].mean())
+            for k, a in zip(eval_keys, actors)
+        ]
     )
     return actors[int(np.argmax(returns))], returns
 
 
 def expected_policy(
-    belief_params: TerrainParams, cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(), cache_dir=None
+    world: World, belief_params, cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(), cache_dir=None
 ) -> Params:
     """π_H's actor for the person whose view of the world is ``belief_params``: from the cache, else trained and stored.
 
@@ -145,11 +143,30 @@ def expected_policy(
         cache_dir: cache root; None uses :func:`cache_root`.
     """
     path = cache_root(cache_dir) / "expected_policy" / f"{cache_key(belief_params, cfg)}.npz"
-    template = _actor_template(cfg)
+    template = _actor_template(world.env, cfg)
     if path.exists():
         actor, _ = load_pytree(path, template)
         return actor
-    actor, returns = train_expected_policy(belief_params, cfg)
+    actor, returns = train_expected_policy(world, belief_params, cfg)
     actor = jax.tree.map(lambda t, a: jnp.asarray(a, t.dtype), template, actor)
     save_pytree(path, actor, returns=np.asarray(returns), config=json.dumps(dataclasses.asdict(cfg)))
     return actor
+
+
+def expectation_teacher(
+    world: World,
+    belief: str | None = None,
+    *,
+    unbiased: bool = False,
+    policy_cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(),
+    cache_dir=None,
+) -> ExpectationTeacher:
+    """The simulated person of ``world``: belief ``belief`` (default the world's first), π_H from the cache.
+
+    Args:
+        unbiased: the person knows the true dynamics (Fig. 29); ``belief`` is then ignored.
+        policy_cfg: how π_H is trained when the cache does not hold it.
+        cache_dir: cache root (see :func:`~mindgap.teachers.expected_policy.cache_root`).
+    """
+    params = world.params if unbiased else world.belief(belief)
+    return ExpectationTeacher(params, expected_policy(world, params, policy_cfg, cache_dir), world.env)

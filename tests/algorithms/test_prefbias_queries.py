@@ -7,7 +7,7 @@ import pytest
 from scipy import stats
 
 from mindgap.algorithms.prefbias_inference import PrefBiasConfig, PrefBiasState
-from mindgap.feedback.prefbias_queries import (
+from mindgap.algorithms.prefbias_queries import (
     SAMPLERS,
     bernoulli_kl,
     candidate_scores,
@@ -15,8 +15,8 @@ from mindgap.feedback.prefbias_queries import (
     preference_disagreement,
     select_queries,
 )
-from mindgap.feedback.replay import Replay
-from mindgap.feedback.segments import Segments, sample_segments, take
+from mindgap.data.replay import Replay
+from mindgap.data.segments import Segments, sample_segments, take
 from mindgap.models.bayes import init_gaussian
 from mindgap.models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes
 from mindgap.models.mlp import init_mlp

@@ -8,7 +8,7 @@ episode (segments for preference queries must not cross episodes).
 
 Terminal transitions (goal, pit) and horizon truncations differ: ``terminal`` is set only
 for the former, whose targets do not bootstrap. A learned reward with an absorbing state
-(Kostrikov et al. 2019; :mod:`~mindgap.feedback.segments`) values the state after a
+(Kostrikov et al. 2019; :mod:`~mindgap.data.segments`) values the state after a
 terminal transition at ``r_abs / (1 − γ)``, not 0; :func:`relabel` and the training loop
 store that value in the reward of terminal transitions (:func:`terminal_bonus`), so the
 critic's target ``r + γ (1 − terminal) V(s')`` becomes exactly ``r + γ r_abs / (1 − γ)``
@@ -22,7 +22,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from ..algorithms.sac import Batch
+from .batch import Batch
 
 
 class Replay(NamedTuple):

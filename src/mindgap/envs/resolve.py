@@ -1,0 +1,133 @@
+"""From an ``--env`` string to a world every learner takes, and the checks that a user's world follows the interface.
+
+``--env`` accepts:
+
+* a named terrain world (``nav1``, ``d3``, …) or a world file (``my-world.toml``);
+* ``path/to/file.py:factory`` or ``package.module:factory``: a user's own world — ``factory``
+  is called with the ``key=value`` arguments after a comma
+  (``examples/point_mass.py:make_world,drift=0.1``) and must return an
+  :class:`~mindgap.envs.interface.World`;
+* ``gym:ID`` (``gym:Pendulum-v1,g=9.81``): a gymnasium environment.
+
+Every problem is one line (an :class:`~mindgap.envs.interface.EnvError`): nothing is trained
+or written before the world has passed :func:`check_world`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from .interface import Box, EnvError, World, check_env
+from .terrain import TerrainWorld, load_world
+
+
+def parse_kwargs(text: str) -> dict:
+    """``a=1,b=x`` → ``{"a": 1, "b": "x"}`` (numbers, true/false, else strings)."""
+    out = {}
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        if "=" not in part:
+            raise EnvError(f"expected key=value, got {part!r}")
+        k, v = (s.strip() for s in part.split("=", 1))
+        out[k] = _value(v)
+    return out
+
+
+def _value(v: str):
+    if v.lower() in ("true", "false"):
+        return v.lower() == "true"
+    for cast in (int, float):
+        try:
+            return cast(v)
+        except ValueError:
+            pass
+    return v
+
+
+def _import(target: str):
+    """A module from a ``.py`` path or a dotted name."""
+    if target.endswith(".py"):
+        path = Path(target)
+        if not path.is_file():
+            raise EnvError(f"no such file: {target}")
+        name = f"mindgap_user_env_{abs(hash(str(path.resolve())))}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except Exception as e:
+            del sys.modules[name]
+            raise EnvError(f"cannot import {target}: {type(e).__name__}: {e}") from None
+        return module
+    try:
+        return importlib.import_module(target)
+    except Exception as e:
+        raise EnvError(f"cannot import {target}: {type(e).__name__}: {e}") from None
+
+
+def resolve_env(spec: str):
+    """The world ``spec`` names (see the module docstring), checked."""
+    spec = spec.strip()
+    if spec.startswith("gym:"):
+        raise EnvError(
+            f"{spec}: gymnasium environments need the host loop, which this version of mindgap does not have yet; "
+            "use a pure-JAX world (a named world, a world file or module:factory)"
+        )
+    head, _, kwargs = spec.partition(",")
+    if ":" in head:
+        target, _, factory = head.rpartition(":")
+        module = _import(target)
+        fn = getattr(module, factory, None)
+        if not callable(fn):
+            raise EnvError(f"{target} has no function {factory!r}")
+        try:
+            world = fn(**parse_kwargs(kwargs))
+        except EnvError:
+            raise
+        except Exception as e:
+            raise EnvError(f"{head}() failed: {type(e).__name__}: {e}") from None
+        check_world(world, head)
+        return world
+    if kwargs:
+        raise EnvError(f"{spec}: key=value arguments belong to a module:factory world")
+    return load_world(head)
+
+
+def check_world(world, name: str = "the world") -> None:
+    """Refuse a world that does not follow the interface: its type, spaces, and the shapes its functions return.
+
+    The functions are traced abstractly (``jax.eval_shape``), so nothing is computed.
+    """
+    if isinstance(world, TerrainWorld):
+        return
+    if not isinstance(world, World):
+        raise EnvError(f"{name} returned {type(world).__name__}, not a mindgap World (mindgap.envs.interface.World)")
+    env = world.env
+    check_env(env, continuous_actions=False, who=name)
+    obs_dim = env.observation_space.dim
+    act = env.action_space
+    action = np.zeros(act.shape if isinstance(act, Box) else (), np.float32 if isinstance(act, Box) else np.int32)
+    key = jax.random.key(0)
+    try:
+        state = jax.eval_shape(env.reset, key, world.params)
+        obs = jax.eval_shape(env.observe, state, world.params)
+        out = jax.eval_shape(env.step, key, state, action, world.params)
+    except Exception as e:
+        raise EnvError(f"{name}: its reset/step/observe cannot be traced: {type(e).__name__}: {e}") from None
+    if obs.shape != (obs_dim,):
+        raise EnvError(f"{name}: observe returns shape {obs.shape}, its observation space says ({obs_dim},)")
+    if not all(hasattr(out, f) for f in ("state", "reward", "terminated", "truncated")):
+        raise EnvError(f"{name}: step must return a Step(state, reward, terminated, truncated)")
+    for field in ("reward", "terminated", "truncated"):
+        if getattr(out, field).shape != ():
+            raise EnvError(f"{name}: step's {field} must be a scalar, got shape {getattr(out, field).shape}")
+    if jax.tree.structure(out.state) != jax.tree.structure(state):
+        raise EnvError(f"{name}: step's next state has another structure than reset's state")
+    if world.horizon < 1:
+        raise EnvError(f"{name}: horizon must be at least 1, got {world.horizon}")
