@@ -16,10 +16,11 @@ import jax.numpy as jnp
 
 from mindgap import rng
 from mindgap.algorithms.gerel import GeReLConfig, fit_gerel
-from mindgap.envs.grid import make_grid, move_targets
+from mindgap.envs.grid import move_targets
 from mindgap.feedback.demos import random_demonstrations
 from mindgap.metrics import d_belief
 from mindgap.models.belief import tied
+from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
 

@@ -19,9 +19,10 @@ import numpy as np
 from _numpy_gerel import iteration as numpy_iteration
 from mindgap import rng
 from mindgap.algorithms.gerel import GeReLConfig, RatingData, init_states, make_step
-from mindgap.envs.grid import make_grid, move_targets
+from mindgap.envs.grid import move_targets
 from mindgap.feedback.demos import random_demonstrations
 from mindgap.models.belief import tied
+from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
 

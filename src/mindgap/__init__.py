@@ -4,7 +4,6 @@ from . import rng as rng
 from .algorithms.gerel import GeReLConfig as GeReLConfig
 from .algorithms.gerel import fit_gerel as fit_gerel
 from .envs.coffee import make_coffee as make_coffee
-from .envs.grid import make_grid as make_grid
 from .envs.grid import move_targets as move_targets
 from .envs.tabular import TabularMDP as TabularMDP
 from .feedback.demos import random_demonstrations as random_demonstrations
@@ -12,6 +11,7 @@ from .metrics import all_metrics as all_metrics
 from .models.belief import factored as factored
 from .models.belief import per_state_action as per_state_action
 from .models.belief import tied as tied
+from .planning.grid_task import make_grid as make_grid
 from .teachers.rating import RatingTeacher as RatingTeacher
 
 __version__ = "0.1.0"

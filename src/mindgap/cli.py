@@ -191,11 +191,12 @@ def _gerel(args) -> int:
     from . import rng
     from ._io import atomic_write
     from .algorithms.gerel import GeReLConfig, fit_gerel
-    from .envs.grid import ACTIONS, MOVE_NAMES, make_grid
+    from .envs.grid import ACTIONS, MOVE_NAMES
     from .experiments.table1 import belief_space
     from .feedback.demos import random_demonstrations
     from .feedback.ratings_file import read_ratings, write_ratings
     from .metrics import all_metrics
+    from .planning.grid_task import make_grid
     from .teachers.rating import RatingTeacher
 
     if args.domain not in DOMAINS:

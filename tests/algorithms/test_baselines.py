@@ -3,10 +3,11 @@ import numpy as np
 from mindgap import rng
 from mindgap.algorithms.maxent_irl import fit_maxent_irl
 from mindgap.algorithms.serd import SERDConfig, fit_serd
-from mindgap.envs.grid import make_grid, move_targets
+from mindgap.envs.grid import move_targets
 from mindgap.feedback.demos import policy_demonstrations, random_demonstrations
 from mindgap.metrics import reward_correlation
 from mindgap.models.belief import tied
+from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
 

@@ -8,10 +8,11 @@ import pytest
 from mindgap import rng
 from mindgap.algorithms.gerel import GeReLConfig, RatingData, fit_gerel
 from mindgap.algorithms.gerel_model import pathwise_elbo, score_gradient
-from mindgap.envs.grid import make_grid, move_targets
+from mindgap.envs.grid import move_targets
 from mindgap.feedback.demos import random_demonstrations
 from mindgap.metrics import all_metrics
 from mindgap.models.belief import tied
+from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
 

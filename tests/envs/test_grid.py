@@ -3,12 +3,11 @@ import pytest
 
 from mindgap.envs.grid import (
     NAMED_BELIEFS,
-    informative_pairs,
-    make_grid,
     moves_to_transitions,
     parse_belief,
     true_move_probs,
 )
+from mindgap.planning.grid_task import informative_pairs, make_grid
 
 
 def test_true_dynamics_are_as_specified():

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from mindgap import rng
-from mindgap.envs.grid import make_grid
 from mindgap.feedback.demos import random_demonstrations
 from mindgap.feedback.ratings_file import RatingsFileError, read_ratings, write_ratings
+from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
 

@@ -1,8 +1,9 @@
 import jax.numpy as jnp
 import numpy as np
 
-from mindgap.envs.grid import make_grid, move_targets
+from mindgap.envs.grid import move_targets
 from mindgap.models.belief import per_state_action, tied
+from mindgap.planning.grid_task import make_grid
 
 
 def test_spaces_expand_to_stochastic_tensors_and_represent_the_truth():

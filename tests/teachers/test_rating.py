@@ -2,8 +2,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mindgap import rng
-from mindgap.envs.grid import make_grid
 from mindgap.feedback.demos import Demonstrations, random_demonstrations
+from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
 

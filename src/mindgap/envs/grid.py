@@ -9,19 +9,18 @@ leaves the state unchanged. One reward cell and one penalty cell sit at two corn
 A belief is "the same world with other parameters": an action permutation
 (``T_H[:, a] = T_A[:, perm[a]]``, i.e. the person thinks action ``a`` does what
 ``perm[a]`` really does) or any explicit ``[S, A, S]`` tensor.
+
+Building a whole task (picking informative reward corners needs value iteration)
+lives in :mod:`mindgap.planning.grid_task`.
 """
 
 from __future__ import annotations
 
-import itertools
 from pathlib import Path
-from typing import NamedTuple
 
-import jax.numpy as jnp
 import numpy as np
 
-from ..planning import q_values
-from .tabular import TabularMDP, check_transitions
+from .tabular import check_transitions
 
 ACTIONS = ("Up", "Down", "Left", "Right")
 MOVES = ((-1, 0), (1, 0), (0, -1), (0, 1), (0, 0))
@@ -34,17 +33,6 @@ NAMED_BELIEFS = {
     "rotated": (2, 3, 0, 1),
 }
 """``reversed`` swaps Up and Down; ``rotated`` is Up→Left, Down→Right, Left→Up, Right→Down."""
-
-
-class GridTask(NamedTuple):
-    """A grid world, the person's reward weights and the person's believed dynamics."""
-
-    mdp: TabularMDP
-    human_transitions: jnp.ndarray
-    true_weights: jnp.ndarray
-    corners: tuple[int, int]
-    size: int
-    belief: str
 
 
 def move_targets(size: int) -> np.ndarray:
@@ -130,84 +118,20 @@ def parse_belief(spec, n_actions: int = 4) -> tuple[str, np.ndarray | None, tupl
     return name, None, perm
 
 
-def _human_tensor(true_t: np.ndarray, tensor, perm) -> np.ndarray:
+def belief_transitions(true_t: np.ndarray, tensor, perm) -> np.ndarray:
+    """``[S, A, S]`` dynamics the person believes, from :func:`parse_belief`'s output.
+
+    Args:
+        true_t: ``[S, A, S]`` true transitions.
+        tensor: explicit belief tensor, used when ``perm`` is None.
+        perm: action permutation; ``T_H[:, a] = T_A[:, perm[a]]``.
+
+    Raises:
+        ValueError: the tensor is not a valid transition tensor of the world's shape.
+    """
     if perm is not None:
         return true_t[:, list(perm), :]
     tensor = check_transitions(tensor, name="belief tensor")
     if tensor.shape != true_t.shape:
         raise ValueError(f"belief tensor has shape {tensor.shape}, the world needs {true_t.shape}")
     return tensor
-
-
-def informative_pairs(size: int, true_t: np.ndarray, human_t: np.ndarray, weights=(5.0, -5.0), discount=0.9):
-    """Corner pairs ``(reward, penalty)`` for which the belief misleads an unaware learner.
-
-    The person's greedy actions under their belief, executed by the real robot, move
-    it down the reward gradient (mean one-step reward change below zero): a learner
-    that assumes the true dynamics then infers the wrong reward. Returns the most
-    misleading pairs (within half of the strongest effect); empty when none misleads.
-    Under ``reversed`` these are the pairs in one column, under ``rotated`` the
-    anti-diagonal (SPEC §3.1).
-    """
-    corners = corner_cells(size)
-    pairs = list(itertools.permutations(range(4), 2))
-    rewards = np.stack([corner_features(size, corners[[i, j]]) @ np.asarray(weights) for i, j in pairs])
-    greedy = np.asarray(q_values(jnp.asarray(human_t), jnp.asarray(rewards, jnp.float32), discount)).argmax(-1)
-    gains = {}
-    for k, pair in enumerate(pairs):
-        moved = true_t[np.arange(size * size), greedy[k]] @ rewards[k]
-        gains[pair] = float((moved - rewards[k]).mean())
-    worst = min(gains.values())
-    if worst >= 0:
-        return []
-    return [pair for pair, g in gains.items() if g <= 0.5 * worst]
-
-
-def make_grid(
-    size: int = 7,
-    belief="reversed",
-    *,
-    seed: int = 0,
-    corners: tuple[int, int] | None = None,
-    weights=(5.0, -5.0),
-    slip: float = 0.1,
-    discount: float = 0.9,
-) -> GridTask:
-    """Build a grid task: true world, the person's belief and reward weights.
-
-    Args:
-        size: grid side (``grid7`` is 7).
-        belief: see :func:`parse_belief`.
-        seed: picks the corner pair among the informative ones for this belief (all
-            pairs when none is informative) unless ``corners`` is given.
-        corners: ``(reward_corner, penalty_corner)`` as indices into :data:`CORNERS`.
-        weights: reward weights of the two corner features.
-        slip: probability of an unintended move.
-        discount: ``λ``.
-    """
-    if size < 2:
-        raise ValueError(f"grid size must be at least 2, got {size}")
-    true_t = moves_to_transitions(true_move_probs(slip), size)
-    name, tensor, perm = parse_belief(belief)
-    human_t = _human_tensor(true_t, tensor, perm)
-    if corners is None:
-        pairs = informative_pairs(size, true_t, human_t, weights, discount) or list(itertools.permutations(range(4), 2))
-        corners = pairs[np.random.default_rng(seed).integers(len(pairs))]
-    if len(corners) != 2 or corners[0] == corners[1] or not all(0 <= c < 4 for c in corners):
-        raise ValueError(f"corners must be two different indices into {CORNERS}, got {corners}")
-    feats = corner_features(size, corner_cells(size)[list(corners)])
-    n = size * size
-    mdp = TabularMDP(
-        transitions=jnp.asarray(true_t, jnp.float32),
-        features=jnp.asarray(feats, jnp.float32),
-        discount=jnp.asarray(discount, jnp.float32),
-        initial=jnp.full((n,), 1.0 / n, jnp.float32),
-    )
-    return GridTask(
-        mdp=mdp,
-        human_transitions=jnp.asarray(human_t, jnp.float32),
-        true_weights=jnp.asarray(weights, jnp.float32),
-        corners=(int(corners[0]), int(corners[1])),
-        size=size,
-        belief=name,
-    )

@@ -29,10 +29,11 @@ from .._io import atomic_write
 from ..algorithms.gerel import GeReLConfig, fit_gerel
 from ..algorithms.maxent_irl import MaxEntConfig, fit_maxent_irl
 from ..algorithms.serd import SERDConfig, fit_serd
-from ..envs.grid import CORNERS, GridTask, make_grid, move_targets
+from ..envs.grid import CORNERS, move_targets
 from ..feedback.demos import policy_demonstrations, random_demonstrations
 from ..metrics import all_metrics
 from ..models.belief import BeliefSpace, per_state_action, tied
+from ..planning.grid_task import GridTask, make_grid
 from ..teachers.rating import RatingTeacher
 from ._runfolder import RunFolder, write_csv
 from .table1_report import render_figures, summarise

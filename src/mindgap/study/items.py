@@ -90,8 +90,8 @@ def _coffee(study: Study) -> list[Item]:
 def _grid(study: Study) -> list[Item]:
     import jax
 
-    from ..envs.grid import make_grid
     from ..feedback.demos import random_demonstrations
+    from ..planning.grid_task import make_grid
 
     size = int(study.domain.get("size", 7))
     count, length = _opt(study, "count", 12), _opt(study, "length", 10)
