@@ -2,7 +2,7 @@
 
 Side by side in one process, the same jitted training chunk (``sac_loop.run_chunk``, one
 update per step, seeds vmapped) with plain SAC exploration, with pink action noise, and
-with pink noise plus the state-entropy bonus (``pbrl.EXPLORATION``, every learner's default). Compilation
+with pink noise plus the state-entropy bonus (``engine.EXPLORATION``, every learner's default). Compilation
 is excluded (one warm-up chunk each); the ratio to plain SAC is printed.
 
     python benchmarks/exploration_cost.py [--world d3] [--seeds 5] [--chunks 3] [--hidden 64]
@@ -16,7 +16,7 @@ import time
 
 import jax
 
-from mindgap.algorithms.pbrl import EXPLORATION
+from mindgap.algorithms.engine import EXPLORATION
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
 from mindgap.envs.terrain import load_world

@@ -24,9 +24,10 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
 
 
 def test_exploration_flags_reach_the_sac_config():
-    from mindgap.algorithms.pbrl import EXPLORATION
+    from mindgap.algorithms.engine import EXPLORATION
+    from mindgap.algorithms.pbrl import method_config
     from mindgap.cli import _parser
-    from mindgap.commands.learn import sac_config
+    from mindgap.commands.learn import fill_from_preset, sac_config
     from mindgap.experiments import eps_common as ec
     from mindgap.experiments.prefbias_common import learners
 
@@ -39,11 +40,17 @@ def test_exploration_flags_reach_the_sac_config():
     for cmd in ("sac", "pebble", "drlhp", "prefbias", "eps"):
         assert explore(parse([cmd, "--world", "d1", "--out", "x"])) == EXPLORATION != plain
     flags = ["--noise-color", "2", "--entropy-bonus", "0.5"]
-    assert explore(sac_config(parse(["drlhp", "--world", "d1", "--out", "x", *flags]))) == {
+
+    def parsed_sac(argv):  # as the command builds it: the preset's widths and steps, then the flags
+        args = parse(argv)
+        fill_from_preset(args, method_config(args.command))
+        return sac_config(args)
+
+    assert explore(parsed_sac(["drlhp", "--world", "d1", "--out", "x", *flags])) == {
         "noise_color": 2.0,
         "entropy_bonus": 0.5,
     }
-    assert explore(sac_config(parse(["sac", "--world", "d1", "--out", "x", "--noise-color", "0"])))["noise_color"] == 0
+    assert explore(parsed_sac(["sac", "--world", "d1", "--out", "x", "--noise-color", "0"]))["noise_color"] == 0
     # and so do the experiments' full learners, the oracle with the rest
     full = learners("full")
     assert explore(full.sac.sac) == explore(full.pebble.sac) == explore(full.prefbias.sac) == EXPLORATION

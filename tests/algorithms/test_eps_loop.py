@@ -1,5 +1,6 @@
 """The EPS loop (Algorithm 3): one feedback round relabels exactly with Eq. 4.6; the CLI runs, writes, resumes."""
 
+import dataclasses
 import json
 
 import jax
@@ -7,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.algorithms import eps
+from mindgap.algorithms import engine, eps
 from mindgap.algorithms.eps import EPSConfig, eps_config
 from mindgap.algorithms.eps_maps import surrogate_maps
 from mindgap.algorithms.eps_reward import environment_entropy, eps_reward
@@ -52,11 +53,12 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
     cfg = eps_config("fast", method=method, centre_entropy=centre, surrogate=surrogate)
     # an untrained actor stands in for π_H: the round's bookkeeping does not depend on its quality
     person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor, world.env)
-    carry = eps._init(jax.random.split(key, 2), world.env, world.params, cfg)
-    w = eps.WorldArgs(world.params, world.obs_units())
-    carry = eps._chunk(carry, world.env, w, person, cfg, "random")
+    person = dataclasses.replace(person, cfg=cfg.teacher)
+    env, w = world.env, engine.WorldArgs(world.params, world.obs_units(), person)
+    carry = engine.init_carry(jax.random.split(key, 2), eps.LEARNER, env, world.params, cfg)
+    carry = engine.run_chunk_all(carry, w, eps.LEARNER, env, cfg, "random")
     before = np.asarray(carry.loop.replay.reward)
-    carry, _ = eps._feedback(carry, world.env, w, person, cfg, cfg.teacher)
+    carry, _ = engine.feedback_round(carry, w, person, eps.LEARNER, env, cfg)
     assert np.asarray(carry.queries).tolist() == [cfg.per_round] * 2  # the round's budget, asked or not
     asked = np.asarray(carry.prefs.count).tolist()
     assert asked == ([0, 0] if surrogate == "exact" else [cfg.per_round] * 2)
@@ -64,16 +66,16 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
         c = jax.tree.map(lambda a: a[s], carry)
         buf = c.loop.replay
         n = int(buf.size)
-        params = eps._reward_params(world.env, w, c, person, cfg)
+        params = eps._reward_params(c.model, w, env, cfg)
         fn = eps_reward if method == "eps" else eps.expectation_reward
         want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
         np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
         assert not np.allclose(np.asarray(buf.reward[:n]), before[s, :n])  # the rewards did change
         if centre:  # H_T centred over the buffer (EPSConfig.centre_entropy)
             h = environment_entropy(params, buf.obs[:n], buf.act[:n])
-            assert float(jnp.mean(h)) == pytest.approx(0.0, abs=1e-3) and float(c.h_shift) != 0.0
+            assert float(jnp.mean(h)) == pytest.approx(0.0, abs=1e-3) and float(c.model.h_shift) != 0.0
         else:
-            assert float(c.h_shift) == 0.0  # Eq. 4.6 as written
+            assert float(c.model.h_shift) == 0.0  # Eq. 4.6 as written
         if surrogate == "exact":  # u_H is the person's own score, standardised over the buffer
             score = step_log_likelihood(person, buf.obs[:n], buf.act[:n], buf.next_obs[:n], cfg.teacher.log_t_floor)
             u = eps.normalised_u(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
@@ -87,7 +89,7 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
         maps = np.asarray(surrogate_maps(carry, world.params, person, cfg, k=2))
         h, w = world.params.grid.shape
         assert maps.shape == (2, 2 * h, 2 * w)
-        (m0, s0), (m1, s1) = np.asarray(carry.u_norm)
+        (m0, s0), (m1, s1) = np.asarray(carry.model.u_norm)
         open_cells = np.isfinite(maps[0])
         np.testing.assert_allclose(
             (maps[0] * s0 + m0)[open_cells], (maps[1] * s1 + m1)[open_cells], rtol=1e-4, atol=1e-3

@@ -4,7 +4,7 @@ import jax
 import numpy as np
 import pytest
 
-from mindgap.algorithms import pbrl
+from mindgap.algorithms import engine
 from mindgap.algorithms.pbrl import FAST_SCHEDULE, method_config, train
 from mindgap.envs.terrain import world_from_dict
 from mindgap.models.reward_ensemble import RewardConfig
@@ -42,7 +42,7 @@ def test_resume_after_a_kill_gives_the_same_curve(easy, tmp_path, monkeypatch):
     whole = train(easy, cfg, seeds=2, teacher="true", out=tmp_path / "whole", progress=False)
 
     saves = {"n": 0}
-    real_save = pbrl.save_pytree
+    real_save = engine.save_pytree
 
     def dying_save(*args, **kw):
         real_save(*args, **kw)
@@ -50,10 +50,10 @@ def test_resume_after_a_kill_gives_the_same_curve(easy, tmp_path, monkeypatch):
         if saves["n"] == 3:  # killed right after the third checkpoint (mid-run, after feedback began)
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(pbrl, "save_pytree", dying_save)
+    monkeypatch.setattr(engine, "save_pytree", dying_save)
     with pytest.raises(KeyboardInterrupt):
         train(easy, cfg, seeds=2, teacher="true", out=tmp_path / "killed", progress=False)
-    monkeypatch.setattr(pbrl, "save_pytree", real_save)
+    monkeypatch.setattr(engine, "save_pytree", real_save)
     resumed = train(easy, cfg, seeds=2, teacher="true", out=tmp_path / "killed", progress=False)
     assert resumed["curve"] == whole["curve"]
     np.testing.assert_array_equal(resumed["final_returns"], whole["final_returns"])

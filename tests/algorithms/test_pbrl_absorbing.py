@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.algorithms import pbrl
+from mindgap.algorithms import engine, pbrl
 from mindgap.algorithms.pbrl import FAST_SCHEDULE, PbRLConfig, method_config, train
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
@@ -127,7 +127,7 @@ def test_pebble_with_an_absorbing_state_learns_r_abs_and_keeps_the_buffer_consis
     )  # two feedback rounds; one absorbing state per terminal state
     res = train(easy, cfg, seeds=1, teacher="true", progress=False)
     c = res["carry"]
-    params = c.reward.params
+    params = c.model.params
     assert isinstance(params, AbsorbingParams) and isinstance(c.prefs.seg_a, AbsorbingSegments)
     assert np.asarray(c.prefs.seg_a.absorbed).any()  # some queried segments reached the goal
     assert np.any(np.asarray(params.absorb) != 0.0, axis=-1).all()  # the preferences moved r_abs
@@ -155,11 +155,11 @@ def test_host_answers_keep_absorbing_steps():
             seen.append(a)
             return np.ones(a.mask.shape[0]), np.ones(a.mask.shape[0], bool)
 
-    labels, answered = pbrl.host_answers(Teacher(), seg, seg, jnp.zeros(2, jnp.int32), 3, 10)
+    labels, answered = engine.host_answers(Teacher(), seg, seg, jnp.zeros(2, jnp.int32), 3, 10)
     assert isinstance(seen[0], AbsorbingSegments) and seen[0].absorbed.shape == (6, 4)
     assert bool(answered.all())
     plain = Segments(*seg[:4])
-    pbrl.host_answers(Teacher(), plain, plain, jnp.zeros(2, jnp.int32), 3, 10)
+    engine.host_answers(Teacher(), plain, plain, jnp.zeros(2, jnp.int32), 3, 10)
     assert type(seen[-1]) is Segments
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mindgap import rng
-from mindgap.algorithms import pbrl, prefbias
+from mindgap.algorithms import engine, prefbias
 from mindgap.algorithms.prefbias import prefbias_config, train
 from mindgap.cli import main
 from mindgap.data.replay import terminal_bonus
@@ -18,6 +18,7 @@ from mindgap.envs.terrain import load_world
 from mindgap.models.prefbias_nets import absorbing_value, posterior_reward
 from mindgap.planning.terrain import rollouts
 from mindgap.planning.terrain_maps import noise_maps
+from mindgap.teachers.preference import PreferenceTeacher
 
 # two routes to the goal, an icy upper one and a floor lower one; the person believes ice is slippery
 WORLD = """name = "icy"
@@ -57,7 +58,7 @@ def _cli_fast(**flags):
     """``mindgap prefbias --fast``'s configuration (the learners' default exploration on), with
     PrefBias's ``flags`` changed: tests on it share the CLI test's compiled programs."""
     fast = prefbias_config("fast")
-    sac = dataclasses.replace(fast.sac, **pbrl.EXPLORATION)
+    sac = dataclasses.replace(fast.sac, **engine.EXPLORATION)
     return prefbias_config("fast", sac=sac, prefbias=dataclasses.replace(fast.prefbias, **flags))
 
 
@@ -78,7 +79,7 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
     whole = train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
     saves = {"n": 0}
-    real_save = pbrl.save_pytree
+    real_save = engine.save_pytree
 
     def dying_save(*args, **kw):
         real_save(*args, **kw)
@@ -86,10 +87,10 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
         if saves["n"] == 3:  # killed right after the third checkpoint (the first feedback round is done)
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(pbrl, "save_pytree", dying_save)
+    monkeypatch.setattr(engine, "save_pytree", dying_save)
     with pytest.raises(KeyboardInterrupt):
         train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "killed", progress=False)
-    monkeypatch.setattr(pbrl, "save_pytree", real_save)
+    monkeypatch.setattr(engine, "save_pytree", real_save)
     resumed = train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "killed", progress=False)
     assert resumed["curve"] == whole["curve"]
     np.testing.assert_array_equal(resumed["final_returns"], whole["final_returns"])
@@ -125,33 +126,37 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, t
     assert (cfg.prefbias == prefbias_config("fast").prefbias) == both_on  # both on by default
     record = cfg.as_dict()["prefbias"]
     assert {k for k in ("absorbing", "stay_head") if k in record} == set(opts)  # recorded only when on
-    carry = prefbias._init(jax.random.split(rng.key(3), 2), icy.env, icy.params, cfg)
+    env, w = icy.env, engine.WorldArgs(icy.params, icy.obs_units())
+    carry = engine.init_carry(jax.random.split(rng.key(3), 2), prefbias.LEARNER, env, icy.params, cfg)
     for phase in ("random", "explore"):
-        carry = prefbias._chunk(carry, icy.env, icy.params, cfg, phase)
+        carry = engine.run_chunk_all(carry, w, prefbias.LEARNER, env, cfg, phase)
     before = np.asarray(carry.loop.replay.reward)
     np.testing.assert_array_equal(before[:, : cfg.chunk], np.asarray(carry.loop.replay.env_reward)[:, : cfg.chunk])
-    carry, info = prefbias._feedback(carry, icy.env, icy.params, icy.belief(), cfg, cfg.teacher)
+    person = PreferenceTeacher(icy.params, icy.belief(), env, cfg.teacher)
+    carry, info = engine.feedback_round(carry, w, person, prefbias.LEARNER, env, cfg)
     assert np.all(np.asarray(carry.queries) == cfg.per_round)
     assert np.all(np.asarray(carry.prefs.count) == cfg.per_round)
     assert np.all(np.isfinite(np.asarray(info.loss)))
     buf, size = carry.loop.replay, int(carry.loop.replay.size[0])
-    expect = jax.vmap(posterior_reward)(carry.model.reward.mean, buf.obs, buf.act, buf.next_obs)
+    expect = jax.vmap(posterior_reward)(carry.model.posterior.reward.mean, buf.obs, buf.act, buf.next_obs)
     assert hasattr(carry.prefs.seg_a, "absorbed") == absorbing
     if absorbing:  # terminal transitions also carry the value of the absorbing state they enter
         assert np.asarray(carry.prefs.seg_a.absorbed).any()
-        r_abs = jax.vmap(absorbing_value)(carry.model.reward.mean, buf.next_obs)
+        r_abs = jax.vmap(absorbing_value)(carry.model.posterior.reward.mean, buf.next_obs)
         assert np.abs(np.asarray(r_abs)[np.asarray(buf.terminal)]).max() > 0  # the fit moved r_abs off 0
         expect = expect + jnp.where(buf.terminal, terminal_bonus(r_abs, cfg.sac.gamma), 0.0)
     after = np.asarray(buf.reward)
     np.testing.assert_allclose(after[:, :size], np.asarray(expect)[:, :size], rtol=1e-5, atol=1e-6)
     assert not np.allclose(after[:, :size], before[:, :size])
     # the first round fitted f_ψ on the buffer and centred p(φ) on it; q(φ) started there
-    psi = carry.dynamics.params[0][0]
-    np.testing.assert_array_equal(np.asarray(carry.model.belief_prior[0][0]), np.asarray(psi))
-    outputs = carry.dynamics.params[-1][1].shape[-1]  # mean and scale per coordinate, and the stay logit
-    assert outputs == 4 + opts.get("stay_head", False) == carry.model.belief.mean[-1][1].shape[-1]
-    np.testing.assert_allclose(np.asarray(carry.model.norm.out_std), np.asarray(carry.dynamics.norm.out_std))
-    assert float(jnp.abs(carry.dynamics.norm.out_std).min()) < 0.5  # the buffer's spread, not the placeholder's 1
+    psi = carry.model.dynamics.params[0][0]
+    np.testing.assert_array_equal(np.asarray(carry.model.posterior.belief_prior[0][0]), np.asarray(psi))
+    outputs = carry.model.dynamics.params[-1][1].shape[-1]  # mean and scale per coordinate, and the stay logit
+    assert outputs == 4 + opts.get("stay_head", False) == carry.model.posterior.belief.mean[-1][1].shape[-1]
+    np.testing.assert_allclose(
+        np.asarray(carry.model.posterior.norm.out_std), np.asarray(carry.model.dynamics.norm.out_std)
+    )
+    assert float(jnp.abs(carry.model.dynamics.norm.out_std).min()) < 0.5  # the buffer's spread, not the placeholder's 1
 
 
 def test_cli_writes_curve_summary_and_belief(world_file, tmp_path, capsys):

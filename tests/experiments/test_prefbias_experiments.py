@@ -72,14 +72,16 @@ def _fake_result(world, cfg, seeds, method):
     if method == "prefbias":
         sizes = reward_sizes(2, 2, cfg.prefbias.reward_hidden)
         res["carry"] = SimpleNamespace(
-            model=SimpleNamespace(reward=SimpleNamespace(mean=_stack([init_mlp(k, sizes) for k in keys])))
+            model=SimpleNamespace(
+                posterior=SimpleNamespace(reward=SimpleNamespace(mean=_stack([init_mlp(k, sizes) for k in keys])))
+            )
         )
         wall = np.isnan(np.asarray(table_noise_map(world.params)))
         noise = np.where(wall, np.nan, 0.1 + 0.01 * np.arange(seeds)[:, None, None])
         res["belief_noise"], res["dynamics_noise"] = noise, noise * 0.5
     else:
         params = _stack([init_stack(k, cfg.reward.members, (4, *cfg.reward.hidden, 1)) for k in keys])
-        res["carry"] = SimpleNamespace(reward=SimpleNamespace(params=params))
+        res["carry"] = SimpleNamespace(model=SimpleNamespace(params=params))
     return res
 
 

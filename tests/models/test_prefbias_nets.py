@@ -131,3 +131,16 @@ def test_absorbing_local_reparameterisation_matches_weight_sampling(key):
     # without a head there is nothing to draw
     off = init_gaussian(reward_weights_init(k_w, 2, 2, (4,), absorbing=False), 0.02)
     np.testing.assert_array_equal(absorbing_local(off, s_t, k_draw), 0.0)
+
+
+def test_absorbing_local_has_finite_gradients_beyond_the_features(key):
+    """A terminal state outside [−1, 1]² meets no feature (variance exactly 0): the draw is the mean, gradients finite."""
+    k_w, k_m, k_draw = jax.random.split(key, 3)
+    mean = reward_weights_init(k_w, 2, 2, (4,), absorbing=True)
+    mean = mean._replace(absorb=0.01 * jax.random.normal(k_m, (256,)))
+    post = init_gaussian(mean, 0.02)
+    s_t = jnp.array([[2.5, 0.0], [0.1, -0.3]])  # the first far outside the grid of centres, the second inside
+    draw = absorbing_local(post, s_t, k_draw)
+    assert float(draw[0]) == 0.0 and float(draw[1]) != 0.0
+    grads = jax.grad(lambda p: absorbing_local(p, s_t, k_draw).sum())(post)
+    assert all(np.all(np.isfinite(np.asarray(g))) for g in jax.tree.leaves(grads))

@@ -65,7 +65,7 @@ def test_the_export_is_a_preferences_file_with_every_answer(recorded):
 def test_a_reward_is_learned_offline_from_the_recorded_answers(recorded):
     tmp, path, _ = recorded
     out = tmp / "fit"
-    args = argparse.Namespace(command="pebble", world="nav1", preferences=path, out=out, seed=0)
+    args = argparse.Namespace(command="pebble", env="nav1", preferences=path, out=out, seed=0)
     assert run_offline(args) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["records"] == 160 and summary["participants"] == 2
@@ -79,7 +79,7 @@ def test_a_reward_is_learned_offline_from_the_recorded_answers(recorded):
 def test_a_reward_learned_offline_ranks_unseen_segments_as_the_world_does(recorded):
     tmp, path, _ = recorded
     out = tmp / "fit-held-out"
-    assert run_offline(argparse.Namespace(command="pebble", world="nav1", preferences=path, out=out, seed=1)) == 0
+    assert run_offline(argparse.Namespace(command="pebble", env="nav1", preferences=path, out=out, seed=1)) == 0
     world = load_world("nav1")
     template = reward_init(jax.random.key(0), 2, 2, RewardConfig()).params
     params, _ = load_pytree(out / "reward.npz", template)
@@ -125,6 +125,6 @@ def test_malformed_preferences_files_name_the_record(recorded, tmp_path, edit, m
 
 def test_a_file_from_another_world_is_refused(recorded, tmp_path):
     _, path, _ = recorded
-    args = argparse.Namespace(command="pebble", world="d1", preferences=path, out=tmp_path, seed=0)
-    with pytest.raises(ValueError, match="recorded on world 'nav1'; pass --world nav1"):
+    args = argparse.Namespace(command="pebble", env="d1", preferences=path, out=tmp_path, seed=0)
+    with pytest.raises(ValueError, match="recorded on world 'nav1'; pass --env nav1"):
         run_offline(args)

@@ -39,18 +39,15 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .. import rng
 from ..data.fingerprint import fingerprint
-from ..data.prefs import PrefData, prefs_add, prefs_init
-from ..data.replay import relabel
 from ..envs.interface import Env, check_env
 from ..feedback.queries import SAMPLERS, select_queries
 from ..models.actor import actor_dist
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
 from ..models.reward_ensemble import RewardConfig, RewardState, preference_probs, reward_init, train_reward
-from ..teachers import expectation
 from ..teachers.expectation import ExpectationTeacher
-from ..teachers.preference import TeacherConfig
+from ..teachers.host import HostTeacher
+from .engine import FAST_SCHEDULE, Learner, Schedule, WorldArgs, run, run_record
 from .eps_reward import (
     EPSRewardParams,
     ExactSurrogate,
@@ -61,9 +58,7 @@ from .eps_reward import (
     u_norm_from_replay,
 )
 from .explicability import explicability
-from .pbrl import FAST_SCHEDULE, Schedule, drive, run_record
 from .sac import SACConfig
-from .sac_loop import LoopState, dims, loop_init, run_chunk
 
 METHODS = ("eps", "drlhp")
 SURROGATES = ("learned", "exact")
@@ -74,7 +69,7 @@ class EPSConfig(Schedule):
     """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument).
 
     The schedule's fields (steps, chunks, evaluation, SAC, budget, teacher knobs) are
-    :class:`~mindgap.algorithms.pbrl.Schedule`'s; for EPS the SAC's α is replaced by
+    :class:`~mindgap.algorithms.engine.Schedule`'s; for EPS the SAC's α is replaced by
     λ·reward_scale/nats_per_unit.
     """
 
@@ -161,17 +156,14 @@ def eps_config(preset: str = "full", **overrides) -> EPSConfig:
     return cfg
 
 
-class EPSCarry(NamedTuple):
-    """Everything a run carries between chunks, each leaf with a leading seed axis."""
+class EPSModel(NamedTuple):
+    """One seed's EPS model: the ensemble that learns u_H, T_A, and how u_H and H_T are standardised."""
 
-    loop: LoopState
     reward: RewardState
-    prefs: PrefData
     dynamics: DynamicsModel
     u_norm: jax.Array  # [2]: mean and std of u_H over the buffer
     h_shift: jax.Array  # subtracted from H_T: its mean over the buffer (or 0)
-    key: jax.Array
-    queries: jax.Array
+    started: jax.Array = jnp.zeros((), bool)  # a feedback round has fitted T_A
 
 
 def expectation_reward(params: EPSRewardParams, obs, act, next_obs) -> jax.Array:
@@ -183,161 +175,122 @@ def _reward_fn(cfg: EPSConfig):
     return eps_reward if cfg.method == "eps" else expectation_reward
 
 
-def u_params(c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig):
+def u_params(model: EPSModel, person: ExpectationTeacher, cfg: EPSConfig):
     """What u_H is computed from: one seed's ensemble, or the person's own score (``cfg.surrogate``)."""
     if cfg.surrogate == "exact":
         return ExactSurrogate(person, jnp.asarray(cfg.teacher.log_t_floor, jnp.float32))
-    return c.reward.params
+    return model.reward.params
 
 
-class WorldArgs(NamedTuple):
-    """The true world as EPS's jitted programs take it: its params and :meth:`~mindgap.envs.interface.World.obs_units`."""
-
-    params: object
-    units: jax.Array
-
-
-def _reward_params(env: Env, w: WorldArgs, c: EPSCarry, person: ExpectationTeacher, cfg: EPSConfig) -> EPSRewardParams:
+def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig) -> EPSRewardParams:
     f = jnp.float32
     return EPSRewardParams(
         w.params,
-        u_params(c, person, cfg),
-        c.u_norm[0],
-        c.u_norm[1],
-        c.dynamics,
+        u_params(m, w.oracle, cfg),
+        m.u_norm[0],
+        m.u_norm[1],
+        m.dynamics,
         jnp.asarray(cfg.dynamics.min_std, f),
-        c.h_shift,
+        m.h_shift,
         jnp.asarray(cfg.lam, f),
         w.units,
         env,
     )
 
 
-def _init(keys, env: Env, world_params, cfg: EPSConfig) -> EPSCarry:
-    d, a = dims(env)
+def _init(key, env: Env, cfg: EPSConfig):
+    d, a = env.observation_space.dim, env.action_space.dim
+    k_loop, k_rew, k_dyn, k_run = jax.random.split(key, 4)
+    norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))  # replaced at the first round
+    model = EPSModel(
+        reward_init(k_rew, d, a, cfg.reward),
+        dynamics_init(k_dyn, d, a, cfg.dynamics, norm),
+        jnp.array([0.0, 1.0], jnp.float32),
+        jnp.zeros((), jnp.float32),
+    )
+    return model, k_loop, k_run
 
-    def one(k):
-        k_loop, k_rew, k_dyn, k_run = jax.random.split(k, 4)
-        norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))  # replaced at the first round
-        return EPSCarry(
-            loop_init(k_loop, env, world_params, cfg.agent_sac(), cfg.total_steps),
-            reward_init(k_rew, d, a, cfg.reward),
-            prefs_init(cfg.queries, cfg.segment, d, a),
-            dynamics_init(k_dyn, d, a, cfg.dynamics, norm),
-            jnp.array([0.0, 1.0], jnp.float32),
-            jnp.zeros((), jnp.float32),
-            k_run,
-            jnp.zeros((), jnp.int32),
-        )
 
-    return jax.vmap(one)(keys)
+def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """Lines 4–5 of Algorithm 3: refit T_A to the buffer D (afresh the first time), pick the queries."""
+    key, k_dyn, k_fresh, k_q, k_t, k_r = jax.random.split(key, 6)
+    dyn = m.dynamics
+    if cfg.method == "eps":
+        valid = jnp.arange(buf.capacity) < buf.size
+        norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
+        fresh = dynamics_init(k_fresh, buf.obs.shape[-1], buf.act.shape[-1], cfg.dynamics, norm)
+        start = _where(m.started, dyn, fresh)
+        dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, cfg.dynamics, init=start)
+    seg_a = seg_b = None
+    if cfg.surrogate == "learned":
+        probs = partial(preference_probs, m.reward.params)
+        seg_a, seg_b = select_queries(k_q, buf, probs, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates)
+    return m._replace(dynamics=dyn, started=jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
+
+
+def _learn(m: EPSModel, prefs, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """Line 7 and §4.3.3: fit u_H to every answer, standardise it (and optionally H_T) over the buffer."""
+    loss, acc = jnp.zeros(()), jnp.ones(())
+    if cfg.surrogate == "learned":
+        rew, loss, acc = train_reward(m.reward, prefs, key, cfg.reward)
+        m = m._replace(reward=rew)
+    m = m._replace(u_norm=jnp.stack(u_norm_from_replay(u_params(m, w.oracle, cfg), buf)))
+    if cfg.method == "eps" and cfg.centre_entropy:
+        m = m._replace(h_shift=entropy_mean_from_replay(_reward_params(m, w, env, cfg), buf))
+    return m, (loss, acc)
+
+
+def _reward(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """Line 10: r_A + λ(u_H + H_T) for EPS, the standardised u_H alone for DRLHP."""
+    return _reward_fn(cfg), _reward_params(m, w, env, cfg), None
 
 
 def _where(cond, a, b):
     return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-def _round_one(c: EPSCarry, env: Env, w: WorldArgs, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
-    """One seed's feedback round (lines 4–7 of Algorithm 3), then relabelling."""
-    key, k_dyn, k_fresh, k_q, k_t, k_r = jax.random.split(c.key, 6)
-    buf = c.loop.replay
-    dyn = c.dynamics
-    if cfg.method == "eps":
-        valid = jnp.arange(buf.capacity) < buf.size
-        norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
-        fresh = dynamics_init(k_fresh, buf.obs.shape[-1], buf.act.shape[-1], cfg.dynamics, norm)
-        dyn, _ = train_dynamics(
-            k_dyn, buf.obs, buf.act, buf.next_obs, valid, cfg.dynamics, init=_where(c.queries == 0, fresh, dyn)
-        )
-    left = cfg.queries - c.queries
-    if cfg.surrogate == "learned":
-        seg_a, seg_b = select_queries(
-            k_q,
-            buf,
-            partial(preference_probs, c.reward.params),
-            cfg.per_round,
-            cfg.segment,
-            cfg.sampler,
-            cfg.candidates,
-        )
-        labels, answered = expectation.answer(k_t, seg_a, seg_b, person, tcfg)
-        answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
-        prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
-        rew, loss, acc = train_reward(c.reward, prefs, k_r, cfg.reward)
-        c = c._replace(reward=rew, prefs=prefs)
-    else:  # the person's own score: nothing to ask or fit
-        loss, acc = jnp.zeros(()), jnp.ones(())
-    u_norm = jnp.stack(u_norm_from_replay(u_params(c, person, cfg), buf))
-    c = c._replace(dynamics=dyn, u_norm=u_norm, key=key)
-    if cfg.method == "eps" and cfg.centre_entropy:
-        c = c._replace(h_shift=entropy_mean_from_replay(_reward_params(env, w, c, person, cfg), buf))
-    replay = relabel(buf, _reward_fn(cfg), _reward_params(env, w, c, person, cfg))
-    shown = jnp.minimum(cfg.per_round, left)
-    return c._replace(loop=c.loop._replace(replay=replay), queries=c.queries + shown), (loss, acc)
-
-
-@partial(jax.jit, static_argnames=("env", "cfg", "tcfg"))
-def _feedback(carry: EPSCarry, env: Env, w: WorldArgs, person: ExpectationTeacher, cfg: EPSConfig, tcfg: TeacherConfig):
-    return jax.vmap(lambda c: _round_one(c, env, w, person, cfg, tcfg))(carry)
-
-
-def _chunk(carry: EPSCarry, env: Env, w: WorldArgs, person: ExpectationTeacher, cfg: EPSConfig, phase: str):
-    learned = phase == "train"
-    sac = cfg.agent_sac()
-
-    def one(c: EPSCarry):
-        return run_chunk(
-            c.loop,
-            env,
-            w.params,
-            _reward_params(env, w, c, person, cfg),
-            n_steps=cfg.chunk,
-            cfg=sac,
-            phase=phase,
-            reward_fn=_reward_fn(cfg) if learned else None,
-        )
-
-    return carry._replace(loop=jax.vmap(one)(carry))
+LEARNER = Learner(
+    _init, _select, _learn, _reward, agent_sac=lambda cfg: cfg.agent_sac(), asks=lambda cfg: cfg.surrogate == "learned"
+)
+"""EPS (Algorithm 3) and expectation-DRLHP as a :class:`~mindgap.algorithms.engine.Learner`."""
 
 
 def train(
     world,
     cfg: EPSConfig,
-    person: ExpectationTeacher,
+    person: ExpectationTeacher | HostTeacher,
     seeds: int = 1,
     out: Path | None = None,
     progress: bool = True,
     fresh: bool = False,
     person_name: str = "biased",
 ) -> dict:
-    """Run ``seeds`` seeds of EPS (or expectation-DRLHP) on a terrain world; checkpoint to ``out``.
+    """Run ``seeds`` seeds of EPS (or expectation-DRLHP) on ``world``; checkpoint to ``out``.
 
     Args:
-        world: a :class:`~mindgap.envs.terrain.TerrainWorld`.
-        person: the simulated person (:func:`~mindgap.teachers.expectation.expectation_teacher`).
+        world: a :class:`~mindgap.envs.interface.World` whose env has ``reward`` and ``log_prob``.
+        person: the simulated person (:func:`~mindgap.algorithms.expected_policy.expectation_teacher`),
+            or a host teacher (people answering "which is more expected" through the study app).
         person_name: how the run record names the person (``biased``, ``unbiased``).
 
     Returns:
-        the dict of :func:`mindgap.algorithms.pbrl.train` (``curve``, ``final_returns``,
+        the dict of :func:`mindgap.algorithms.engine.run` (``curve``, ``final_returns``,
         ``paths``, ``config``, ``carry``).
     """
     cfg.check()
     check_env(world.env, density=True, who="EPS")
-    env, w = world.env, WorldArgs(world.params, world.obs_units())
-    tcfg = cfg.teacher
-    meta = run_record(
-        world, seeds, teacher=f"expectation:{person_name}", person_hash=fingerprint(person), config=cfg.as_dict()
-    )
-    carry = _init(jax.random.split(rng.key(cfg.seed), seeds), env, w.params, cfg)
-
-    def feedback(c):
-        return _feedback(c, env, w, person, cfg, tcfg)[0]
-
-    def chunk(c, phase):
-        return _chunk(c, env, w, person, cfg, phase)
-
-    # the engine's schedule reads cfg.sac (learning_starts) — the same for the agent's SAC
-    return drive(world, cfg, seeds, meta, carry, feedback, chunk, out=out, progress=progress, fresh=fresh)
+    host = not isinstance(person, ExpectationTeacher)
+    if host and cfg.surrogate == "exact":
+        raise ValueError("the exact surrogate reads a simulated person's models; people cannot supply them")
+    if host:
+        meta = run_record(world, seeds, teacher=f"expectation:{person.name}", config=cfg.as_dict())
+        teacher, oracle = person, None
+    else:
+        meta = run_record(
+            world, seeds, teacher=f"expectation:{person_name}", person_hash=fingerprint(person), config=cfg.as_dict()
+        )
+        teacher = oracle = dataclasses.replace(person, cfg=cfg.teacher)
+    return run(world, LEARNER, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle)
 
 
 def explicability_scores(key, world, person: ExpectationTeacher, actors, episodes: int = 100, agent_dist=actor_dist):

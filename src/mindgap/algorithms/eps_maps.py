@@ -8,16 +8,18 @@ import jax
 import jax.numpy as jnp
 
 from ..teachers.expectation import ExpectationTeacher
-from .eps import EPSCarry, EPSConfig, u_params
+from .engine import Carry
+from .eps import EPSConfig, u_params
 from .eps_reward import raw_u
 
 
-def surrogate_maps(carry: EPSCarry, world_params, person: ExpectationTeacher, cfg: EPSConfig, k: int = 4):
+def surrogate_maps(carry: Carry, world_params, person: ExpectationTeacher, cfg: EPSConfig, k: int = 4):
     """Every seed's :func:`surrogate_map`, of what its u_H is computed from (``cfg.surrogate``): [seeds, H·k, W·k]."""
     if cfg.surrogate == "exact":
-        u = u_params(carry, person, cfg)
-        return jax.vmap(lambda norm: surrogate_map(u, norm, world_params, k))(carry.u_norm)
-    return jax.vmap(surrogate_map, in_axes=(0, 0, None, None))(carry.reward.params, carry.u_norm, world_params, k)
+        u = u_params(carry.model, person, cfg)
+        return jax.vmap(lambda norm: surrogate_map(u, norm, world_params, k))(carry.model.u_norm)
+    m = carry.model
+    return jax.vmap(surrogate_map, in_axes=(0, 0, None, None))(m.reward.params, m.u_norm, world_params, k)
 
 
 @partial(jax.jit, static_argnames=("k",))

@@ -1,6 +1,6 @@
 """PrefBias (Algorithm 2): preference-based RL that learns the person's belief along with the reward.
 
-The loop of Algorithm 2 on the engine of :mod:`~mindgap.algorithms.pbrl` (same phases,
+The loop of Algorithm 2 on the engine of :mod:`~mindgap.algorithms.engine` (same phases,
 checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
 
 1. ``random`` steps until ``sac.learning_starts``, then (optionally, as PEBBLE)
@@ -28,24 +28,19 @@ The first round also initialises the posteriors (line 1): q(φ) starts at the fi
 from __future__ import annotations
 
 import dataclasses
-from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from ..data.prefs import PrefData, prefs_add, prefs_init
-from ..data.replay import relabel
-from ..envs.interface import Env
+from ..envs.interface import Env, check_env
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
 from ..models.prefbias_nets import absorbing_value, posterior_reward
 from ..teachers.host import HostTeacher
-from ..teachers.preference import TeacherConfig, answer
-from .pbrl import FAST_SCHEDULE, Schedule, run_engine
+from .engine import FAST_SCHEDULE, Learner, Schedule, preference_teacher, run
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
 from .prefbias_queries import SAMPLERS, select_queries
-from .sac_loop import LoopState, dims, loop_init, run_chunk
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,62 +115,48 @@ def prefbias_config(preset: str = "full", **overrides) -> PrefBiasLoopConfig:
     return cfg
 
 
-class PrefBiasCarry(NamedTuple):
-    """Everything a run carries between chunks, each leaf with a leading seed axis."""
+class PrefBiasModel(NamedTuple):
+    """One seed's PrefBias model: the posteriors q(w) q(φ), the agent's dynamics model f_ψ, and
+    whether the first feedback round has initialised them (Alg. 2, line 1)."""
 
-    loop: LoopState
-    model: PrefBiasState
+    posterior: PrefBiasState
     dynamics: DynamicsModel
-    prefs: PrefData
-    key: jax.Array
-    queries: jax.Array
+    started: jax.Array = jnp.zeros((), bool)
 
 
-def _init(keys, env: Env, world_params, cfg: PrefBiasLoopConfig) -> PrefBiasCarry:
+def _init(key, env: Env, cfg: PrefBiasLoopConfig):
     # Placeholders of the right structure: the first feedback round fits f_ψ and its
     # normalisation and initialises the posteriors from it (Alg. 2, line 1).
     pcfg = cfg.prefbias
-    d, a = dims(env)
-
-    def one(k):
-        k_loop, k_dyn, k_model, k_run = jax.random.split(k, 4)
-        norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))
-        dyn = dynamics_init(k_dyn, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
-        return PrefBiasCarry(
-            loop_init(k_loop, env, world_params, cfg.sac, cfg.total_steps),
-            prefbias_init(k_model, d, a, pcfg, dyn),
-            dyn,
-            prefs_init(cfg.queries, cfg.segment, d, a, absorbing=pcfg.absorbing),
-            k_run,
-            jnp.zeros((), jnp.int32),
-        )
-
-    return jax.vmap(one)(keys)
+    d, a = env.observation_space.dim, env.action_space.dim
+    k_loop, k_dyn, k_model, k_run = jax.random.split(key, 4)
+    norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))
+    dyn = dynamics_init(k_dyn, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
+    return PrefBiasModel(prefbias_init(k_model, d, a, pcfg, dyn), dyn), k_loop, k_run
 
 
-def _select_one(c: PrefBiasCarry, cfg: PrefBiasLoopConfig):
+def _select(m: PrefBiasModel, buf, key, w, env, cfg: PrefBiasLoopConfig):
     """Lines 4 and 6 of Alg. 2 for one seed: (re)train f_ψ, re-centre p(φ), pick the queries.
 
-    In the first round (no query shown yet) f_ψ starts afresh with the normalisation of the
-    buffer and the posteriors are initialised from it (line 1); later rounds warm-start f_ψ
-    and keep the posteriors. Both cases are one program (a select, not a branch), so a run
-    compiles one feedback round.
+    In the first round (the posteriors still at their placeholder) f_ψ starts afresh with the
+    normalisation of the buffer and the posteriors are initialised from it (line 1); later
+    rounds warm-start f_ψ and keep the posteriors. Both cases are one program (a select, not a
+    branch), so a run compiles one feedback round.
     """
     pcfg = cfg.prefbias
-    key, k_dyn, k_psi0, k_init, k_q, k_t, k_r = jax.random.split(c.key, 7)
-    buf = c.loop.replay
+    key, k_dyn, k_psi0, k_init, k_q, k_t, k_r = jax.random.split(key, 7)
     d, a = buf.obs.shape[-1], buf.act.shape[-1]
     valid = jnp.arange(buf.capacity) < buf.size
-    first = c.queries == 0
+    first = ~m.started
     norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
     fresh = dynamics_init(k_psi0, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
-    start = _where(first, fresh, c.dynamics)
+    start = _where(first, fresh, m.dynamics)
     dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, pcfg.dynamics, init=start)
-    model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn), with_dynamics(c.model, dyn, pcfg))
+    model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn), with_dynamics(m.posterior, dyn, pcfg))
     seg_a, seg_b = select_queries(
         k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples
     )
-    return c._replace(key=key, model=model, dynamics=dyn), seg_a, seg_b, k_t, k_r
+    return PrefBiasModel(model, dyn, jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
 
 
 def _absorbing_fn(cfg: PrefBiasLoopConfig):
@@ -187,63 +168,19 @@ def _where(cond, a, b):
     return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-def _learn_one(c: PrefBiasCarry, seg_a, seg_b, labels, answered, k_r, cfg: PrefBiasLoopConfig):
-    """Line 7 of Alg. 2 for one seed, then relabelling: keep answers within the budget, fit q(w) q(φ)."""
-    left = cfg.queries - c.queries
-    answered = answered & (jnp.arange(cfg.per_round) < left)  # never past the budget
-    prefs = prefs_add(c.prefs, seg_a, seg_b, labels, answered)
-    model, info = fit(c.model, prefs, k_r, cfg.prefbias)
-    replay = relabel(
-        c.loop.replay,
-        posterior_reward,
-        model.reward.mean,
-        absorbing_fn=_absorbing_fn(cfg),
-        gamma=cfg.sac.gamma,
-    )
-    shown = jnp.minimum(cfg.per_round, left)
-    c = c._replace(loop=c.loop._replace(replay=replay), model=model, prefs=prefs, queries=c.queries + shown)
-    return c, info
+def _learn(m: PrefBiasModel, prefs, replay, key, w, env, cfg: PrefBiasLoopConfig):
+    """Line 7 of Alg. 2 for one seed: fit q(w) q(φ) to every answer so far (Eqs. 3.2–3.5)."""
+    posterior, info = fit(m.posterior, prefs, key, cfg.prefbias)
+    return m._replace(posterior=posterior), info
 
 
-@partial(jax.jit, static_argnames=("env", "cfg", "tcfg"))
-def _feedback(carry, env: Env, world_params, belief_params, cfg: PrefBiasLoopConfig, tcfg: TeacherConfig):
-    """One feedback round of every seed with the simulated person, in one program."""
-
-    def one(c):
-        c, seg_a, seg_b, k_t, k_r = _select_one(c, cfg)
-        labels, answered = answer(k_t, seg_a, seg_b, env, world_params, belief_params, tcfg)
-        return _learn_one(c, seg_a, seg_b, labels, answered, k_r, cfg)
-
-    return jax.vmap(one)(carry)
+def _reward(m: PrefBiasModel, w, env, cfg: PrefBiasLoopConfig):
+    """Line 9: SAC optimises the posterior-mean reward r_w (and its absorbing states' value)."""
+    return posterior_reward, m.posterior.reward.mean, _absorbing_fn(cfg)
 
 
-@partial(jax.jit, static_argnames=("cfg",))
-def _select(carry, cfg: PrefBiasLoopConfig):
-    return jax.vmap(lambda c: _select_one(c, cfg))(carry)
-
-
-@partial(jax.jit, static_argnames=("cfg",))
-def _learn(carry, seg_a, seg_b, labels, answered, k_r, cfg: PrefBiasLoopConfig):
-    return jax.vmap(lambda *xs: _learn_one(*xs, cfg))(carry, seg_a, seg_b, labels, answered, k_r)
-
-
-def _chunk(carry: PrefBiasCarry, env: Env, world_params, cfg: PrefBiasLoopConfig, phase: str) -> PrefBiasCarry:
-    learned = phase == "train"
-    loop = jax.vmap(
-        lambda ls, w: run_chunk(
-            ls,
-            env,
-            world_params,
-            w,
-            n_steps=cfg.chunk,
-            cfg=cfg.sac,
-            phase=phase,
-            reward_fn=posterior_reward if learned else None,
-            knn=cfg.knn,
-            absorbing_fn=_absorbing_fn(cfg) if learned else None,
-        )
-    )(carry.loop, carry.model.reward.mean)
-    return carry._replace(loop=loop)
+LEARNER = Learner(_init, _select, _learn, _reward, absorbing=lambda cfg: cfg.prefbias.absorbing)
+"""PrefBias (Algorithm 2) as a :class:`~mindgap.algorithms.engine.Learner`."""
 
 
 def train(
@@ -268,18 +205,7 @@ def train(
         ``paths``, ``config``, ``carry``); on a terrain world,
         :func:`~mindgap.planning.terrain_maps.noise_maps` draws the learned belief from ``carry``.
     """
-    return run_engine(
-        world,
-        cfg,
-        seeds,
-        teacher,
-        belief,
-        out,
-        progress,
-        fresh,
-        init=_init,
-        feedback=_feedback,
-        select=_select,
-        learn=_learn,
-        chunk=_chunk,
-    )
+    cfg.check()
+    person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who="PrefBias")
+    check_env(world.env, density=True, who="PrefBias")
+    return run(world, LEARNER, cfg, person, meta, seeds, out=out, progress=progress, fresh=fresh)

@@ -13,12 +13,12 @@ from __future__ import annotations
 import argparse
 
 from ..feedback.queries import SAMPLERS
-from .learn import add_run_flags
+from .learn import add_env_flag, add_run_flags
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("eps", help="EPS: reconcile the task reward with what a person expects the robot to do")
-    p.add_argument("--world", required=True, help="a named world (d1–d4, nav1, nav2) or a world file")
+    add_env_flag(p)
     p.add_argument("--lam", type=float, default=2.0, help="λ, the reconciliation factor of Eq. 4.6 (default 2)")
     p.add_argument("--method", default="eps", help="eps (default) or drlhp (u_H alone, the §4.4.1.1 baseline)")
     p.add_argument(
@@ -66,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, train
     from ..algorithms.eps_maps import surrogate_maps
     from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
-    from ..envs.terrain import load_world
+    from ..envs.resolve import resolve_env
+    from ..envs.terrain import TerrainWorld
     from ..plotting.terrain import save_fields
     from ..teachers.preference import TeacherConfig
     from .learn import fill_from_preset, sac_config, write_outputs
@@ -75,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--person must be biased or unbiased, got {args.person!r}")
     if args.rollouts < 1:
         raise ValueError("--rollouts must be at least 1")
-    world = load_world(args.world)
+    world = resolve_env(args.env)
     preset = "fast" if args.fast else "full"
     base = eps_config(preset) if args.fast else EPSConfig()
     fill_from_preset(args, base)
@@ -128,20 +129,22 @@ def run(args: argparse.Namespace) -> int:
         explicability_std=float(expl.std()),
         explicability_per_seed=expl.tolist(),
     )
-    u = surrogate_maps(carry, world.params, person, cfg)
-    what = "learned u_H" if cfg.surrogate == "learned" else "the person's log T_H + log π_H"
-    save_fields(
-        args.out / "surrogate.png",
-        world.params,
-        [(f"{what} (standardised, {args.seeds} seed(s))", np.asarray(u).mean(0))],
-        label="u_H",
-        vmin=None,
-        cmap="viridis",
-    )
+    written = "curve.csv, trajectories.png, explicability.json"
+    if isinstance(world, TerrainWorld):  # u_H drawn on the map (Fig. 28)
+        u = surrogate_maps(carry, world.params, person, cfg)
+        what = "learned u_H" if cfg.surrogate == "learned" else "the person's log T_H + log π_H"
+        save_fields(
+            args.out / "surrogate.png",
+            world.params,
+            [(f"{what} (standardised, {args.seeds} seed(s))", np.asarray(u).mean(0))],
+            label="u_H",
+            vmin=None,
+            cmap="viridis",
+        )
+        written += ", surrogate.png"
     print(
         f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
         f"{summary['final_return_std']:.1f}, explicability {expl.mean():.1f} ± {expl.std():.1f} over "
-        f"{args.seeds} seed(s), {summary['queries']} queries asked; curve.csv, trajectories.png, surrogate.png, "
-        f"explicability.json in {args.out}/"
+        f"{args.seeds} seed(s), {summary['queries']} queries asked; {written} in {args.out}/"
     )
     return 0

@@ -1,6 +1,7 @@
-"""``mindgap sac|pebble|drlhp``: train on a terrain world, write the learning curve and routes.
+"""``mindgap sac|pebble|drlhp``: train on a world, write the learning curve and routes.
 
-mindgap pebble --world nav1 --teacher biased --queries 800 --steps 40000 --seeds 5 --out runs/pebble-nav1
+mindgap pebble --env nav1 --teacher biased --queries 800 --steps 40000 --seeds 5 --out runs/pebble-nav1
+mindgap pebble --env examples/point_mass.py:make_world --fast --out runs/pebble-point-mass
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ import io
 import json
 from pathlib import Path
 
-from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS, Schedule
+from ..algorithms.engine import Schedule
+from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS
 from ..algorithms.sac import SACConfig
 
 
@@ -23,7 +25,7 @@ def add_parsers(sub) -> None:
             "drlhp": "DRLHP: reward ensemble from preferences, SAC as the policy optimiser",
         }
         p = sub.add_parser(method, help=helps[method])
-        p.add_argument("--world", required=True, help="a named world (nav1, nav2, d1–d4) or a world file")
+        add_env_flag(p)
         if method != "sac":
             p.add_argument(
                 "--teacher",
@@ -40,8 +42,8 @@ def add_parsers(sub) -> None:
                 help="learn the reward offline from a preferences file (mindgap study export)",
             )
             p.add_argument("--belief", help="belief of a biased teacher (default: the world's first)")
-            p.add_argument("--queries", type=int, default=800, help="query budget (default 800)")
-            p.add_argument("--per-round", type=int, default=50, help="queries per feedback round (default 50)")
+            p.add_argument("--queries", type=int, help="query budget (default 800)")
+            p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
             p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
             p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
             p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
@@ -59,14 +61,30 @@ def add_parsers(sub) -> None:
                 help="with --absorbing: one absorbing state per terminal state (default: terminal) "
                 "or the single one of Kostrikov et al. (single)",
             )
+        p.add_argument(
+            "--fast", action="store_true", help="the quick preset (tiny networks, 1500 steps, 30 queries; for dry runs)"
+        )
         add_run_flags(p)
+        p.set_defaults(steps=None, hidden=None, learning_starts=None, batch=None)  # the preset's unless given
+
+
+ENV_HELP = (
+    "the world: a named terrain world (nav1, nav2, d1–d4), a world file, or a world of your own as "
+    "path/to/file.py:factory or package.module:factory (keyword arguments after a comma: "
+    "examples/point_mass.py:make_world,drift=0.1)"
+)
+
+
+def add_env_flag(p) -> None:
+    """``--env`` (``--world`` is the same flag): see :mod:`~mindgap.envs.resolve`."""
+    p.add_argument("--env", "--world", dest="env", required=True, metavar="ENV", help=ENV_HELP)
 
 
 def add_run_flags(p, steps: int = 40_000) -> None:
     """Flags every learning command shares: steps, seeds, the SAC settings, the run folder.
 
-    The SAC defaults are the engine's (:attr:`~mindgap.algorithms.pbrl.Schedule.sac`, which
-    explores with :data:`~mindgap.algorithms.pbrl.EXPLORATION`).
+    The SAC defaults are the engine's (:attr:`~mindgap.algorithms.engine.Schedule.sac`, which
+    explores with :data:`~mindgap.algorithms.engine.EXPLORATION`).
     """
     p.add_argument("--steps", type=int, default=steps, help=f"environment steps per seed (default {steps})")
     p.add_argument("--seeds", type=int, default=1, help="seeds, vmapped in one program (default 1)")
@@ -137,22 +155,25 @@ def sac_config(args: argparse.Namespace) -> SACConfig:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..algorithms.pbrl import method_config, train
-    from ..envs.terrain import load_world
+    from ..algorithms.pbrl import fast_config, method_config, train
+    from ..envs.resolve import resolve_env
 
     if getattr(args, "preferences", None):
         from ..study.offline import run_offline
 
         return run_offline(args)
-    world = load_world(args.world)
+    world = resolve_env(args.env)
+    preset = fast_config if args.fast else method_config
+    base = preset(args.command)
+    fill_from_preset(args, base)
     over = dict(total_steps=args.steps, seed=args.seed, sac=sac_config(args))
     teacher = "true"
     if args.command != "sac":
         from ..teachers.preference import TeacherConfig
 
         over.update(
-            queries=args.queries,
-            per_round=args.per_round,
+            queries=base.queries if args.queries is None else args.queries,
+            per_round=base.per_round if args.per_round is None else args.per_round,
             sampler=args.sampler,
             teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
         )
@@ -168,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
         host = StudyTeacher(teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
     elif teacher not in ("biased", "true"):
         raise ValueError(f"--teacher must be biased, true or study:STORE, got {teacher!r}")
-    cfg = method_config(args.command, **over)
+    cfg = preset(args.command, **over)
     res = train(
         world,
         cfg,
@@ -195,7 +216,9 @@ def write_outputs(out: Path, world, res: dict, label: str, queries: int | None =
     ``queries`` overrides the count of queries shown that the curve ends on (the exact-surrogate
     EPS ablation asks none, while its rounds count their budget)."""
     from .._io import atomic_write
+    from ..envs.terrain import TerrainWorld
     from ..plotting.learning import curve_stats, save_learning_curves
+    from ..plotting.paths import save_paths
     from ..plotting.terrain import save_world
 
     buf = io.StringIO()
@@ -206,7 +229,10 @@ def write_outputs(out: Path, world, res: dict, label: str, queries: int | None =
     atomic_write(out / "curve.csv", buf.getvalue())
     save_learning_curves(out / "curve.png", {label: res["curve"]}, title=f"{world.name}")
     paths = [p for seed_paths in res["paths"] for p in seed_paths]
-    save_world(out / "trajectories.png", world.params, {label: paths}, title=f"{world.name}: {label}")
+    if isinstance(world, TerrainWorld):
+        save_world(out / "trajectories.png", world.params, {label: paths}, title=f"{world.name}: {label}")
+    else:
+        save_paths(out / "trajectories.png", {label: paths}, title=f"{world.name}: {label}")
     final = res["final_returns"]
     summary = {
         **record,

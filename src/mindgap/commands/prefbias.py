@@ -14,7 +14,7 @@ import argparse
 from ..algorithms.prefbias import PrefBiasLoopConfig
 from ..algorithms.prefbias_inference import PrefBiasConfig
 from ..algorithms.prefbias_queries import SAMPLERS
-from .learn import add_run_flags
+from .learn import add_env_flag, add_run_flags
 
 
 def _on(flag: bool) -> str:
@@ -25,7 +25,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "prefbias", help="PrefBias: learn the reward and the person's belief about the dynamics together"
     )
-    p.add_argument("--world", required=True, help="a named world (nav1, nav2, d1–d4) or a world file")
+    add_env_flag(p)
     p.add_argument(
         "--teacher",
         default="biased",
@@ -70,13 +70,14 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..algorithms.prefbias import prefbias_config, train
-    from ..envs.terrain import load_world
+    from ..envs.resolve import resolve_env
+    from ..envs.terrain import TerrainWorld
     from ..planning.terrain_maps import noise_maps, table_noise_map
     from ..plotting.terrain import save_fields
     from ..teachers.preference import TeacherConfig
     from .learn import fill_from_preset, sac_config, write_outputs
 
-    world = load_world(args.world)
+    world = resolve_env(args.env)
     preset = "fast" if args.fast else "full"
     base = prefbias_config(preset) if args.fast else PrefBiasLoopConfig()
     fill_from_preset(args, base)
@@ -113,6 +114,14 @@ def run(args: argparse.Namespace) -> int:
         fresh=args.fresh,
     )
     label = f"prefbias ({teacher} teacher)"
+    if not isinstance(world, TerrainWorld):  # no map to draw the belief on
+        summary = write_outputs(args.out, world, res, label, method="prefbias", teacher=teacher, sampler=cfg.sampler)
+        print(
+            f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
+            f"{summary['final_return_std']:.1f} over {args.seeds} seed(s), {summary['queries']} queries; "
+            f"curve.csv, curve.png, trajectories.png in {args.out}/"
+        )
+        return 0
     belief_noise, dynamics_noise = (
         np.asarray(m) for m in noise_maps(res["carry"], world.params, cfg.prefbias.dynamics.min_std)
     )

@@ -227,10 +227,10 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
     kw = dict(seeds=seeds, out=out, progress=progress, fresh=fresh)
     if job.method == "prefbias":
         res = prefbias_alg.train(world, job.cfg, teacher="biased", **kw)
-        fn, params = posterior_reward, res["carry"].model.reward.mean
+        fn, params = posterior_reward, res["carry"].model.posterior.reward.mean
     else:
         res = pbrl.train(world, job.cfg, teacher="true" if job.method == "sac" else "biased", **kw)
-        fn, params = ensemble_reward, res["carry"].reward.params
+        fn, params = ensemble_reward, res["carry"].model.params
     final = np.asarray(res["final_returns"], np.float64)
     if not np.all(np.isfinite(final)):
         raise FloatingPointError(f"{job.key}: non-finite returns; the run diverged")

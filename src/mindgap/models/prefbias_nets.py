@@ -107,7 +107,11 @@ def absorbing_local(post: Gaussian, terminal_obs: jax.Array, key: jax.Array) -> 
         return jnp.zeros(terminal_obs.shape[:-1])
     phi = absorbing_features(terminal_obs, m)
     mean, var = phi @ post.mean.absorb, jnp.square(phi) @ jnp.square(stddev(post).absorb)
-    return _bound(mean + jnp.sqrt(var) * jax.random.normal(key, mean.shape, mean.dtype))
+    # var is exactly 0 where s_T lies beyond every feature's support (observations outside [−1, 1]):
+    # sqrt's gradient there is infinite, so take it only where var > 0 (the draw is the mean elsewhere)
+    live = var > 0
+    sd = jnp.where(live, jnp.sqrt(jnp.where(live, var, 1.0)), 0.0)
+    return _bound(mean + sd * jax.random.normal(key, mean.shape, mean.dtype))
 
 
 def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:

@@ -69,7 +69,7 @@ def noise_maps(carry, world_params, min_std: float):
     """Every seed's learned belief f_φ (posterior mean) and agent model f_ψ as :func:`belief_noise_map` s.
 
     Args:
-        carry: a PrefBias run's final carry (``carry.model``, ``carry.dynamics``; leading seed axis).
+        carry: a PrefBias run's final carry (``carry.model.posterior``, ``carry.model.dynamics``; leading seed axis).
         min_std: the dynamics models' noise floor (``PrefBiasConfig.dynamics.min_std``).
 
     Returns:
@@ -77,8 +77,8 @@ def noise_maps(carry, world_params, min_std: float):
     """
 
     def one(c):
-        belief = belief_noise_map(c.model.belief.mean, c.model.norm, world_params, min_std)
-        agent = belief_noise_map(c.dynamics.params, c.dynamics.norm, world_params, min_std)
+        belief = belief_noise_map(c.model.posterior.belief.mean, c.model.posterior.norm, world_params, min_std)
+        agent = belief_noise_map(c.model.dynamics.params, c.model.dynamics.norm, world_params, min_std)
         return belief, agent
 
     return jax.vmap(one)(carry)

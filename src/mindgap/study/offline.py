@@ -111,10 +111,10 @@ def run_offline(args) -> int:
     from .prefs_file import read_preferences
 
     prefs = read_preferences(args.preferences)
-    world = load_world(args.world)
+    world = load_world(args.env)
     recorded = prefs.domain.get("world")
     if recorded and recorded != world.name and Path(recorded).stem != world.name:
-        raise ValueError(f"{args.preferences} was recorded on world {recorded!r}; pass --world {recorded}")
+        raise ValueError(f"{args.preferences} was recorded on world {recorded!r}; pass --env {recorded}")
     if (prefs.obs_dim, prefs.act_dim) != (2, 2):
         raise ValueError(
             f"{args.preferences}: terrain worlds have 2-D observations and actions, the file has {prefs.obs_dim}, {prefs.act_dim}"

@@ -44,7 +44,7 @@ from ..models.squashed import squashed_log_prob
 from .preference import TeacherConfig, discounted_sum, labels_from_scores
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["belief", "policy"], meta_fields=["env"])
+@partial(jax.tree_util.register_dataclass, data_fields=["belief", "policy"], meta_fields=["env", "cfg"])
 @dataclasses.dataclass(frozen=True)
 class ExpectationTeacher:
     """The person's model of the agent, as arrays (pass it into jitted code like any pytree).
@@ -54,11 +54,17 @@ class ExpectationTeacher:
         policy: actor parameters of π_H (:func:`~mindgap.algorithms.sac.actor_dist` reads them).
         env: the world's functions (static: part of the pytree's structure, not a leaf);
             ``env.log_prob`` gives log T_H under ``belief``.
+        cfg: how the person answers (static), for :meth:`answer`.
     """
 
     belief: Any
     policy: Params
     env: Env
+    cfg: TeacherConfig = TeacherConfig()
+
+    def answer(self, key: jax.Array, seg_a: Segments, seg_b: Segments):
+        """Which of each pair this person finds more expected (:func:`answer` with ``self.cfg``)."""
+        return answer(key, seg_a, seg_b, self, self.cfg)
 
 
 def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array) -> jax.Array:

@@ -17,6 +17,8 @@ models the same steps with its absorbing-state reward.
 from __future__ import annotations
 
 import dataclasses
+from functools import partial
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -104,3 +106,26 @@ def labels_from_scores(key: jax.Array, sa: jax.Array, sb: jax.Array, cfg: Teache
     if cfg.equal > 0:
         labels = jnp.where(jnp.abs(sa - sb) < cfg.equal * scale, 0.5, labels)
     return labels, answered
+
+
+@partial(jax.tree_util.register_dataclass, data_fields=["world", "belief"], meta_fields=["env", "cfg"])
+@dataclasses.dataclass(frozen=True)
+class PreferenceTeacher:
+    """The simulated person as a value the engine passes into its compiled programs.
+
+    Attributes:
+        world: the true world's params (r_H is ``env.reward`` under them).
+        belief: params of the person's believed dynamics (log T_H is ``env.log_prob`` under
+            them), or None for the ordinary B-Pref teacher.
+        env: the world's functions (static).
+        cfg: how the person answers (static).
+    """
+
+    world: Any
+    belief: Any
+    env: Env
+    cfg: TeacherConfig
+
+    def answer(self, key: jax.Array, seg_a: Segments, seg_b: Segments):
+        """:func:`answer` of this person: (labels [K], answered [K])."""
+        return answer(key, seg_a, seg_b, self.env, self.world, self.belief, self.cfg)
