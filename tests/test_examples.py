@@ -5,6 +5,7 @@ each learner once.
 """
 
 import json
+import re
 from pathlib import Path
 
 import jax
@@ -122,3 +123,21 @@ def test_bad_envs_get_one_line_and_nothing_is_written(world, tmp_path, capsys, m
     with pytest.raises(EnvError, match="continuous"):
         pbrl.train(discrete, pbrl.fast_config("sac"), progress=False)
     assert Box((2,)).dim == 2
+
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+@pytest.mark.parametrize("method", ["sac", "pebble", "drlhp", "prefbias", "eps"])
+def test_the_readme_snippet_of_each_method_runs(method, tmp_path, monkeypatch):
+    """Here rather than in test_readme.py: the snippets use this file's configurations, so they compile nothing new."""
+    monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
+    snippets = [
+        s for s in re.findall(r"```python\n(.*?)```", README.read_text(), re.S) if f"import mindgap.{method} " in s
+    ]
+    assert len(snippets) == 1, method
+    namespace: dict = {}
+    exec(compile(snippets[0], "README.md", "exec"), namespace)
+    result = namespace["result"]
+    assert result["final_returns"].shape == (2, 20) and np.all(np.isfinite(result["final_returns"]))
+    assert max(r[3] for r in result["curve"]) == (0 if method == "sac" else 30)

@@ -6,7 +6,8 @@ The top-level modules and subpackages of ``mindgap`` sit in layers, lowest first
 1. ``models``, ``envs``, ``feedback`` (``models`` and ``envs`` do not import each other)
 2. ``teachers``, ``planning``, ``plotting``
 3. ``metrics``, ``algorithms``
-4. ``experiments``, ``study``
+4. ``experiments``, ``study``; the public method modules ``sac``, ``pebble``, ``drlhp``,
+   ``prefbias``, ``eps`` and their shared ``_api``
 5. ``commands``
 6. ``cli``
 
@@ -38,6 +39,12 @@ RANK = {
     "algorithms": 3,
     "experiments": 4,
     "study": 4,
+    "_api": 4,
+    "sac": 4,
+    "pebble": 4,
+    "drlhp": 4,
+    "prefbias": 4,
+    "eps": 4,
     "commands": 5,
     "cli": 6,
 }
