@@ -1,6 +1,6 @@
 """Explicable policy search (Algorithm 3) and the DRLHP baseline on expectation preferences.
 
-The loop of Algorithm 3 on the engine of :mod:`~mindgap.algorithms.pbrl` (same phases,
+The loop of Algorithm 3 on the engine of :mod:`~mindgap.algorithms.engine` (same phases,
 checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
 
 1. ``random`` steps until ``sac.learning_starts`` (line 3 with a uniform policy);

@@ -166,7 +166,7 @@ def expectation_teacher(
     Args:
         unbiased: the person knows the true dynamics (Fig. 29); ``belief`` is then ignored.
         policy_cfg: how π_H is trained when the cache does not hold it.
-        cache_dir: cache root (see :func:`~mindgap.teachers.expected_policy.cache_root`).
+        cache_dir: cache root (see :func:`cache_root`).
     """
     params = world.params if unbiased else world.belief(belief)
     return ExpectationTeacher(params, expected_policy(world, params, policy_cfg, cache_dir), world.env)

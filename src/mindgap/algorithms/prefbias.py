@@ -201,7 +201,7 @@ def train(
             ``"true"`` (r_H only) or a :class:`~mindgap.teachers.host.HostTeacher`.
 
     Returns:
-        the dict of :func:`mindgap.algorithms.pbrl.train` (``curve``, ``final_returns``,
+        the dict of :func:`mindgap.algorithms.engine.run` (``curve``, ``final_returns``,
         ``paths``, ``config``, ``carry``); on a terrain world,
         :func:`~mindgap.planning.terrain_maps.noise_maps` draws the learned belief from ``carry``.
     """

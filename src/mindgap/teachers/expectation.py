@@ -14,11 +14,12 @@ Christiano et al. 2017). The B-Pref knobs (myopia ``gamma``, ``mistake``, ``skip
 
 Choices:
 
-* log T_H is the terrain world's exact density (:func:`~mindgap.envs.terrain.log_prob_pos`)
-  under the person's dynamics table — a point-mass probability when the agent did not
-  move, a density per cell² otherwise, as for the preference teacher.
-* π_H is the SAC policy of :mod:`~mindgap.teachers.expected_policy`; its density is over
-  actions in (−1, 1)², the tanh Jacobian included, so that u_H and SAC's policy entropy
+* log T_H is the world's exact ``log_prob`` under the person's params (for the terrain
+  worlds :func:`~mindgap.envs.terrain.log_prob_pos` under the person's dynamics table — a
+  point-mass probability when the agent did not move, a density per cell² otherwise), as
+  for the preference teacher.
+* π_H is the SAC policy of :mod:`~mindgap.algorithms.expected_policy`; its density is over
+  actions in (−1, 1)^a, the tanh Jacobian included, so that u_H and SAC's policy entropy
   (also over squashed actions) are measured alike and their Jacobian terms cancel in Eq. 4.6.
 * ``cfg.log_t_floor`` floors each of the two terms per step, so that one step the person
   finds (nearly) impossible cannot decide a comparison alone.

@@ -4,7 +4,7 @@ A host teacher takes K pairs of segments as NumPy arrays (the layout of
 :class:`~mindgap.data.segments.Segments`, ``[K, L, ·]``) and returns
 ``(labels [K] float32, answered [K] bool)`` with the label convention of
 :func:`mindgap.teachers.preference.answer`: 1 = first preferred, 0 = second, 0.5 = equal.
-The engine (:func:`mindgap.algorithms.pbrl.train`) then runs a feedback round in
+The engine (:func:`mindgap.algorithms.engine.run`) then runs a feedback round in
 three steps — jitted query selection, this call, jitted reward fitting — instead of
 one jitted function; PrefBias and EPS ask people through the same interface.
 """
