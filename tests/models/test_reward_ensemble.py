@@ -210,3 +210,12 @@ def test_absorbing_reward_stays_zero_where_no_segment_ended(key):
     np.testing.assert_array_equal(r_abs[1:], 0.0)  # far from it: untouched
     phi = np.asarray(absorbing_features(at, RBF_PER_AXIS**2))
     assert np.all((phi[1:, None, :] == 0) | (phi[0][None, None, :] == 0))  # disjoint supports
+
+
+def test_a_terminal_absorbing_head_is_refused_beyond_three_dimensions(key):
+    """16^d radial features: 4096 at d = 3; a hopper's 11 dimensions would need 16^11, so say what to use instead."""
+    cfg = RewardConfig(members=2, hidden=(4,))
+    assert reward_init(key, 3, 1, cfg, absorbing="terminal").params.absorb.shape == (2, 16**3)
+    with pytest.raises(ValueError, match="at most 3 observation dimensions.*this world has 11"):
+        reward_init(key, 11, 3, cfg, absorbing="terminal")
+    assert reward_init(key, 11, 3, cfg, absorbing="single").params.absorb.shape == (2, 1)

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 from .bayes import Gaussian, bnn_local, stddev
 from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, next_state_log_prob, normalise_input, predict
 from .mlp import Params, init_mlp, mlp
-from .reward_ensemble import RBF_PER_AXIS, absorbing_features
+from .reward_ensemble import absorbing_features, rbf_count
 
 REWARD_BOUND = 10.0
 """Soft bound B of the learned reward per step."""
@@ -62,7 +62,7 @@ def reward_weights_init(key: jax.Array, obs_dim: int, act_dim: int, hidden: tupl
     The MLP is the same for the same key either way; r_abs starts at 0 everywhere.
     """
     net = init_mlp(key, reward_sizes(obs_dim, act_dim, hidden))
-    return RewardWeights(net, jnp.zeros(RBF_PER_AXIS**obs_dim)) if absorbing else net
+    return RewardWeights(net, jnp.zeros(rbf_count(obs_dim))) if absorbing else net
 
 
 def _net(params) -> Params:

@@ -85,9 +85,22 @@ RBF_PER_AXIS = 16
 """Radial basis centres per observation axis of the ``terminal`` absorbing head (on [−1, 1])."""
 RBF_SUPPORT = 2.0
 """Radius of each radial basis feature, in widths (its value there is exp(−2) of its peak)."""
+RBF_MAX_DIM = 3
+"""The most observation dimensions a grid of radial basis centres is built for (16³ = 4096 features);
+beyond it the grid grows past what a reward head should hold, and :func:`rbf_count` refuses."""
 RBF_GAIN = 20.0
 """Height of each radial basis feature: a step of Adam then moves r_abs about as far as it
 moves the output of a member's MLP (about lr × 60), so the head keeps pace with the members."""
+
+
+def rbf_count(obs_dim: int) -> int:
+    """Features of a ``terminal`` absorbing head over ``obs_dim`` dimensions: :data:`RBF_PER_AXIS`^d, for d ≤ :data:`RBF_MAX_DIM`."""
+    if obs_dim > RBF_MAX_DIM:
+        raise ValueError(
+            f"absorbing states per terminal state need at most {RBF_MAX_DIM} observation dimensions "
+            f"({RBF_PER_AXIS}^d radial features), this world has {obs_dim}: use absorbing_state='single' or no absorbing states"
+        )
+    return RBF_PER_AXIS**obs_dim
 
 
 def absorbing_features(terminal_obs: jax.Array, m: int) -> jax.Array:
@@ -125,7 +138,7 @@ def reward_init(
     if absorbing is not None:
         if absorbing not in ABSORBING_STATES:
             raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)}, got {absorbing!r}")
-        m = RBF_PER_AXIS**obs_dim if absorbing == "terminal" else 1
+        m = rbf_count(obs_dim) if absorbing == "terminal" else 1
         params = AbsorbingParams(params, jnp.zeros((cfg.members, m)))
     return RewardState(params, optax.adam(cfg.lr).init(params))
 
