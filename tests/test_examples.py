@@ -86,7 +86,7 @@ def test_bad_envs_get_one_line_and_nothing_is_written(world, tmp_path, capsys, m
         "nowhere.py:make_world": "no such file",
         f"{EXAMPLE}:make_planet": "has no function 'make_planet'",
         f"{EXAMPLE}:make_world,speed=2": "make_world() failed: TypeError",
-        "gym:Pendulum-v1": "host loop",
+        "gym:NoSuchEnv-v0": "gym:NoSuchEnv-v0",
     }
     (tmp_path / "syntax.py").write_text("def make_world(:\n")
     bad[f"{tmp_path / 'syntax.py'}:make_world"] = "cannot import"

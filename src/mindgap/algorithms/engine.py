@@ -16,7 +16,8 @@ for every seed at once (vmapped, in jitted chunks of environment steps):
 A teacher is a value: a jittable simulated person with ``answer(key, seg_a, seg_b) → (labels,
 answered)`` (the round is then one compiled program), or a
 :class:`~mindgap.teachers.host.HostTeacher` — people through the study app — asked outside
-jit between the round's two compiled halves. Runs checkpoint after every chunk to
+jit between the round's two compiled halves. A :class:`~mindgap.envs.gym_world.GymWorld` runs the same
+schedule with its envs stepped on the host (:mod:`~mindgap.algorithms.host_loop`). Runs checkpoint after every chunk to
 ``OUT/checkpoint.npz``, resume from it, and refuse a folder made with other settings.
 """
 
@@ -39,6 +40,7 @@ from ..checkpoint import load_pytree, save_pytree
 from ..data.fingerprint import fingerprint
 from ..data.prefs import PrefData, prefs_add, prefs_init
 from ..data.replay import relabel
+from ..envs.gym_world import GymWorld
 from ..envs.interface import Env, check_env
 from ..teachers.preference import PreferenceTeacher, TeacherConfig
 from .sac import SACConfig, sac_init
@@ -350,10 +352,55 @@ def run(
         episodes], ``paths`` (per seed, greedy rollouts through ``world.trace``), ``config``
         (the run record) and the final ``carry``.
     """
+    if isinstance(world, GymWorld):  # gymnasium envs step on the host
+        from .host_loop import run_host
+
+        return run_host(
+            world, learner, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle
+        )
     cfg.check()
     check_env(world.env, who=cfg.method)
     env, w = world.env, WorldArgs(world.params, world.obs_units(), oracle)
     carry = init_carry(jax.random.split(rng.key(cfg.seed), seeds), learner, env, world.params, cfg)
+
+    def chunk(c, phase, step):
+        return run_chunk_all(c, w, learner, env, cfg, phase)
+
+    def evaluate_at(c, episodes, step):
+        return _evaluate(c, world, episodes, step, cfg.seed)
+
+    return drive(
+        world, learner, cfg, teacher, meta, carry, w, chunk, evaluate_at, out=out, progress=progress, fresh=fresh
+    )
+
+
+def drive(
+    world,
+    learner: Learner,
+    cfg,
+    teacher,
+    meta: dict,
+    carry: Carry,
+    w: WorldArgs,
+    chunk,
+    evaluate_at,
+    *,
+    out=None,
+    progress=True,
+    fresh=False,
+) -> dict:
+    """The schedule every run follows, whatever steps its world: phases, rounds, evaluations, checkpoints.
+
+    Args:
+        carry: every seed's fresh carry (replaced by the checkpoint's when ``out`` holds one).
+        chunk: ``(carry, phase, step) → carry`` after ``cfg.chunk`` environment steps from ``step``.
+        evaluate_at: ``(carry, episodes, step) → (returns [S, E], observations [S, E, T+1, d], alive [S, E, T])``
+            of greedy episodes (their keys derived from ``step``).
+
+    Returns:
+        the result dict of :func:`run`.
+    """
+    env, seeds = world.env, carry.queries.shape[0]
     host = teacher is not None and not hasattr(teacher, "answer")
 
     def one_round(c):
@@ -385,22 +432,17 @@ def run(
         bar = tqdm(total=cfg.total_steps, initial=step, desc=f"{cfg.method} {world.name}", unit="step")
     first_feedback = cfg.learning_steps()
     while step < cfg.total_steps:
-        if step < cfg.sac.learning_starts:
-            phase = "random"
-        elif step < first_feedback:
-            phase = "explore"
-        else:
-            phase = "train"
+        phase = phase_at(step, cfg)
         if teacher is not None and phase == "train":
             due = (step - first_feedback) % cfg.feedback_every == 0
             if due and int(carry.queries.min()) < cfg.queries:
                 carry = one_round(carry)
             if step == first_feedback and cfg.reset_critic:
                 carry = reset_critic(carry, learner.agent_sac(cfg))
-        carry = run_chunk_all(carry, w, learner, env, cfg, phase)
+        carry = chunk(carry, phase, step)
         step += cfg.chunk
         if step % cfg.eval_every == 0 or step == cfg.total_steps:
-            rets = np.asarray(_evaluate(carry, world, cfg.eval_episodes, step, cfg.seed)[0])
+            rets = np.asarray(evaluate_at(carry, cfg.eval_episodes, step)[0])
             q = np.asarray(carry.queries)
             rows += [(s, step, float(rets[s].mean()), int(q[s])) for s in range(seeds)]
             if bar is not None:
@@ -411,7 +453,7 @@ def run(
             bar.update(cfg.chunk)
     if bar is not None:
         bar.close()
-    final, obs, alive = _evaluate(carry, world, max(cfg.eval_episodes, 20), cfg.total_steps + 1, cfg.seed)
+    final, obs, alive = evaluate_at(carry, max(cfg.eval_episodes, 20), cfg.total_steps + 1)
     pos = world.trace(obs)
     paths = []
     for s in range(seeds):
@@ -421,3 +463,10 @@ def run(
             seed_paths.append(np.asarray(pos[s, e, : n + 1]))
         paths.append(seed_paths)
     return {"curve": rows, "final_returns": np.asarray(final), "paths": paths, "config": meta, "carry": carry}
+
+
+def phase_at(step: int, cfg) -> str:
+    """The schedule's phase at environment step ``step``: ``random``, ``explore`` or ``train``."""
+    if step < cfg.sac.learning_starts:
+        return "random"
+    return "explore" if step < cfg.learning_steps() else "train"

@@ -40,6 +40,7 @@ import jax
 import jax.numpy as jnp
 
 from ..data.fingerprint import fingerprint
+from ..envs.gym_world import refuse_without_dynamics
 from ..envs.interface import Env, check_env
 from ..feedback.queries import SAMPLERS, select_queries
 from ..models.actor import actor_dist
@@ -278,6 +279,7 @@ def train(
         ``paths``, ``config``, ``carry``).
     """
     cfg.check()
+    refuse_without_dynamics(world, "EPS")
     check_env(world.env, density=True, who="EPS")
     host = not isinstance(person, ExpectationTeacher)
     if host and cfg.surrogate == "exact":

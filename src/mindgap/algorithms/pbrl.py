@@ -27,6 +27,7 @@ from pathlib import Path
 
 import jax
 
+from ..envs.gym_world import GymWorld
 from ..envs.interface import Env
 from ..feedback.queries import SAMPLERS, select_queries
 from ..models.reward_ensemble import (
@@ -174,7 +175,8 @@ def train(
     """Run ``seeds`` seeds of ``cfg.method`` on ``world``; checkpoint to ``out``.
 
     Args:
-        world: a :class:`~mindgap.envs.interface.World` (a terrain world, or a user's own).
+        world: a :class:`~mindgap.envs.interface.World` (a terrain world, a user's own, or a
+            :class:`~mindgap.envs.gym_world.GymWorld`, run by :mod:`~mindgap.algorithms.host_loop`).
         teacher: ``"biased"`` — the person scores segments with r_H + log T_H under
             ``belief`` (default: the world's first); ``"true"`` — the ordinary B-Pref
             teacher (r_H only); a :class:`~mindgap.teachers.host.HostTeacher` (e.g. people
@@ -185,6 +187,11 @@ def train(
         return, queries), ``final_returns`` [seeds, episodes], ``paths``, ``config``, ``carry``.
     """
     cfg.check()
+    if isinstance(world, GymWorld) and cfg.method != "sac" and teacher == "biased":
+        raise ValueError(
+            "the biased teacher needs the person's believed dynamics (an exact log_prob); "
+            "gym worlds have none yet: use --teacher true"
+        )
     person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who=cfg.method)
     if cfg.method == "sac":
         person = None

@@ -34,6 +34,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
+from ..envs.gym_world import refuse_without_dynamics
 from ..envs.interface import Env, check_env
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
 from ..models.prefbias_nets import absorbing_value, posterior_reward
@@ -206,6 +207,7 @@ def train(
         :func:`~mindgap.planning.terrain_maps.noise_maps` draws the learned belief from ``carry``.
     """
     cfg.check()
+    refuse_without_dynamics(world, "PrefBias")
     person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who="PrefBias")
     check_env(world.env, density=True, who="PrefBias")
     return run(world, LEARNER, cfg, person, meta, seeds, out=out, progress=progress, fresh=fresh)

@@ -164,27 +164,36 @@ def run_chunk(
         state = jax.tree.map(lambda a, b: jnp.where(done, a, b), env.reset(k_reset, world_params), out.state)
         sac = ls.sac
         if phase != "random":
-
-            def update(sac, k):
-                k_batch, k_pool, k_sac = jax.random.split(k, 3)
-                if phase == "explore":  # the intrinsic reward belongs to one step: no n-step sums
-                    batch = replay_sample(replay, k_batch, cfg.batch_size)
-                    pool = replay_sample(replay, k_pool, 1024).next_obs
-                    batch = batch._replace(reward=state_entropy_reward(batch, pool, knn))
-                else:
-                    batch = replay_sample(replay, k_batch, cfg.batch_size, cfg.n_step, cfg.gamma)
-                    if cfg.entropy_bonus > 0:  # on the first step of an n-step target
-                        pool = replay_sample(replay, k_pool, BONUS_POOL).next_obs
-                        bonus = novelty_bonus(batch, pool, knn, bonus_weight(cfg, ls.steps))
-                        batch = batch._replace(reward=batch.reward + bonus)
-                return sac_update(sac, batch, k_sac, cfg)[0], None
-
-            sac, _ = jax.lax.scan(update, sac, jax.random.split(k_upd, cfg.utd))
+            sac = sac_updates(sac, replay, k_upd, ls.steps, cfg, phase, knn)
         t = jnp.where(done, 0, ls.t + 1)
         return LoopState(sac, replay, state, t, key, ls.steps + 1, noise), None
 
     ls, _ = jax.lax.scan(body, ls, None, length=n_steps)
     return ls
+
+
+def sac_updates(sac: SACState, replay: Replay, key: jax.Array, steps, cfg: SACConfig, phase: str, knn: int) -> SACState:
+    """``cfg.utd`` SAC updates on minibatches of ``replay`` (a ``lax.scan``), after ``steps`` environment steps.
+
+    In the ``explore`` phase on PEBBLE's state-entropy reward (one step, no n-step sums); in
+    ``train`` on the stored reward with n-step targets and, with ``cfg.entropy_bonus``, the
+    decaying novelty bonus on the first step of each target.
+    """
+
+    def update(sac, k):
+        k_batch, k_pool, k_sac = jax.random.split(k, 3)
+        if phase == "explore":  # the intrinsic reward belongs to one step: no n-step sums
+            batch = replay_sample(replay, k_batch, cfg.batch_size)
+            pool = replay_sample(replay, k_pool, 1024).next_obs
+            batch = batch._replace(reward=state_entropy_reward(batch, pool, knn))
+        else:
+            batch = replay_sample(replay, k_batch, cfg.batch_size, cfg.n_step, cfg.gamma)
+            if cfg.entropy_bonus > 0:  # on the first step of an n-step target
+                pool = replay_sample(replay, k_pool, BONUS_POOL).next_obs
+                batch = batch._replace(reward=batch.reward + novelty_bonus(batch, pool, knn, bonus_weight(cfg, steps)))
+        return sac_update(sac, batch, k_sac, cfg)[0], None
+
+    return jax.lax.scan(update, sac, jax.random.split(key, cfg.utd))[0]
 
 
 def _greedy(actor, obs):

@@ -7,7 +7,8 @@
   is called with the ``key=value`` arguments after a comma
   (``examples/point_mass.py:make_world,drift=0.1``) and must return an
   :class:`~mindgap.envs.interface.World`;
-* ``gym:ID`` (``gym:Pendulum-v1,g=9.81``): a gymnasium environment.
+* ``gym:ID`` (``gym:Pendulum-v1,g=9.81``): a gymnasium environment, stepped on the host
+  (:mod:`~mindgap.envs.gym_world`; ``max_episode_steps=N`` sets its horizon).
 
 Every problem is one line (an :class:`~mindgap.envs.interface.EnvError`): nothing is trained
 or written before the world has passed :func:`check_world`.
@@ -75,10 +76,9 @@ def resolve_env(spec: str):
     """The world ``spec`` names (see the module docstring), checked."""
     spec = spec.strip()
     if spec.startswith("gym:"):
-        raise EnvError(
-            f"{spec}: gymnasium environments need the host loop, which this version of mindgap does not have yet; "
-            "use a pure-JAX world (a named world, a world file or module:factory)"
-        )
+        from .gym_world import gym_world_from_spec
+
+        return gym_world_from_spec(spec)
     head, _, kwargs = spec.partition(",")
     if ":" in head:
         target, _, factory = head.rpartition(":")

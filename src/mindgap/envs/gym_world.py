@@ -1,0 +1,170 @@
+"""gymnasium environments as worlds that learners step on the host (``--env gym:Pendulum-v1,g=9.81``).
+
+A :class:`GymWorld` is a :class:`~mindgap.envs.interface.World` whose env cannot be traced:
+its ``reset``/``step``/``observe`` refuse (the host loop,
+:mod:`~mindgap.algorithms.host_loop`, steps :meth:`GymWorld.make`'s gymnasium envs in
+numpy instead), while its spaces are the interface's — a flat observation :class:`Box` and
+actions in [−1, 1]^a, which :meth:`GymWorld.to_env` maps affinely onto the env's bounds.
+
+For a simulated person on the true reward, :data:`REWARDS` holds exact pure-JAX rewards
+``reward(obs, act, next_obs, params)`` (``act`` the agent's, in [−1, 1]) of the envs whose
+reward is a function of the transition's observations: Pendulum-v1 and
+MountainCarContinuous-v0, transcribed from gymnasium's ``classic_control`` sources. Other
+ids get no reward (SAC runs; PEBBLE/DRLHP's simulated person refuses). No world has a
+``log_prob``: learners that need the person's believed dynamics refuse gym worlds
+(:func:`refuse_without_dynamics`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax.numpy as jnp
+import numpy as np
+
+from .interface import Box, Env, EnvError, World
+
+
+def _host_only(*_args, **_kwargs):
+    raise EnvError("a gym world steps on the host (mindgap.algorithms.host_loop); it has no JAX reset/step/observe")
+
+
+def _scaled(act, p):
+    """The env's action of the agent's ``act`` in [−1, 1]: ``low + (act + 1)(high − low)/2``, clipped."""
+    return jnp.clip(p["low"] + (act + 1.0) * 0.5 * (p["high"] - p["low"]), p["low"], p["high"])
+
+
+def pendulum_reward(obs, act, next_obs, params):
+    """Pendulum-v1's reward ``−(θ² + 0.1 θ̇² + 0.001 u²)`` of the state before the step.
+
+    ``obs = (cos θ, sin θ, θ̇)``; θ normalised to [−π, π) as gymnasium's ``angle_normalize``
+    (atan2 differs only at ±π, where θ² is the same); ``u`` the torque clipped to ±max_torque.
+    """
+    u = _scaled(act, params)[0]
+    th = jnp.arctan2(obs[1], obs[0])
+    return -(th**2 + 0.1 * obs[2] ** 2 + 0.001 * u**2)
+
+
+def mountain_car_reward(obs, act, next_obs, params):
+    """MountainCarContinuous-v0's reward: 100 on reaching the goal (next position ≥ goal_position and
+    next velocity ≥ goal_velocity, the termination test) minus ``0.1 force²`` (the action before clipping)."""
+    force = params["low"] + (act[0] + 1.0) * 0.5 * (params["high"] - params["low"])
+    goal = (next_obs[0] >= params["goal_position"]) & (next_obs[1] >= params["goal_velocity"])
+    return jnp.where(goal, 100.0, 0.0) - 0.1 * force[0] ** 2
+
+
+REWARDS = {
+    "Pendulum-v1": (pendulum_reward, lambda kw: {}),
+    "MountainCarContinuous-v0": (
+        mountain_car_reward,
+        lambda kw: {"goal_position": 0.45, "goal_velocity": float(kw.get("goal_velocity", 0.0))},
+    ),
+}
+"""id → (reward, kwargs → its params beyond the action bounds)."""
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class GymWorld(World):
+    """A gymnasium env as a world: ``env_id`` and ``kwargs`` make it; ``params`` hold the reward's numbers.
+
+    Attributes:
+        env_id: the gymnasium id (``Pendulum-v1``).
+        kwargs: keyword arguments of ``gymnasium.make`` as sorted (key, value) pairs.
+        act_low, act_high: the env's action bounds, per dimension.
+    """
+
+    env_id: str = ""
+    kwargs: tuple = ()
+    act_low: tuple = ()
+    act_high: tuple = ()
+
+    def make(self, seed: int | None = None):
+        """A fresh gymnasium env (time-limited at ``horizon``), reset with ``seed``; returns (env, obs)."""
+        import gymnasium
+
+        env = gymnasium.make(self.env_id, max_episode_steps=self.horizon, **dict(self.kwargs))
+        obs, _ = env.reset(seed=seed)
+        return env, np.asarray(obs, np.float32).reshape(-1)
+
+    def to_env(self, act: np.ndarray) -> np.ndarray:
+        """The env's action of the agent's ``act`` in [−1, 1] (affine onto its bounds, clipped)."""
+        low, high = np.asarray(self.act_low, np.float32), np.asarray(self.act_high, np.float32)
+        return np.clip(low + (np.asarray(act, np.float32) + 1.0) * 0.5 * (high - low), low, high)
+
+    def fingerprint_tree(self):
+        """The reward's params and the action bounds (the id and kwargs are in the world's name)."""
+        return (self.params, np.asarray(self.act_low, np.float32), np.asarray(self.act_high, np.float32))
+
+
+def make_gym_world(env_id: str, **kwargs) -> GymWorld:
+    """The :class:`GymWorld` of gymnasium's ``env_id`` made with ``kwargs``; one-line EnvError otherwise."""
+    import gymnasium
+
+    try:
+        probe = gymnasium.make(env_id, **kwargs)
+    except gymnasium.error.Error as e:
+        raise EnvError(f"gym:{env_id}: {type(e).__name__}: {e}".splitlines()[0]) from None
+    except Exception as e:
+        raise EnvError(f"gym:{env_id}: cannot make it: {type(e).__name__}: {e}".splitlines()[0]) from None
+    try:
+        obs_space, act_space = probe.observation_space, probe.action_space
+        horizon = probe.spec.max_episode_steps if probe.spec is not None else None
+    finally:
+        probe.close()
+    if not isinstance(act_space, gymnasium.spaces.Box) or len(act_space.shape) != 1:
+        raise EnvError(f"gym:{env_id}: mindgap's learners need a flat Box action space, this env has {act_space}")
+    if not (np.all(np.isfinite(act_space.low)) and np.all(np.isfinite(act_space.high))):
+        raise EnvError(f"gym:{env_id}: its action bounds are not finite, so actions in [-1, 1] cannot be scaled")
+    if not isinstance(obs_space, gymnasium.spaces.Box):
+        raise EnvError(f"gym:{env_id}: mindgap's learners need a Box observation space, this env has {obs_space}")
+    if not horizon:
+        raise EnvError(
+            f"gym:{env_id}: it declares no max_episode_steps; pass one, e.g. gym:{env_id},max_episode_steps=500"
+        )
+    low, high = (tuple(float(x) for x in b) for b in (act_space.low, act_space.high))
+    params = {"low": jnp.asarray(low, jnp.float32), "high": jnp.asarray(high, jnp.float32)}
+    reward = None
+    if env_id in REWARDS:
+        reward, extra = REWARDS[env_id]
+        params.update({k: jnp.asarray(v, jnp.float32) for k, v in extra(kwargs).items()})
+    d = int(np.prod(obs_space.shape))
+    obs_bounds = (float(np.min(obs_space.low)), float(np.max(obs_space.high)))
+    env = Env(_host_only, _host_only, _host_only, Box((d,), *obs_bounds), Box((len(low),)), reward=reward)
+    name = "gym:" + ",".join([env_id, *(f"{k}={v}" for k, v in sorted(kwargs.items()))])
+    return GymWorld(
+        name,
+        env,
+        params,
+        horizon=int(horizon),
+        source=name,
+        env_id=env_id,
+        kwargs=tuple(sorted(kwargs.items())),
+        act_low=low,
+        act_high=high,
+    )
+
+
+def gym_world_from_spec(spec: str) -> GymWorld:
+    """``gym:ID,key=value,…`` → :func:`make_gym_world` (``max_episode_steps`` sets the horizon)."""
+    from .resolve import parse_kwargs
+
+    head, _, rest = spec.partition(",")
+    env_id = head[len("gym:") :].strip()
+    if not env_id:
+        raise EnvError(f"{spec}: expected gym:ID (gym:Pendulum-v1)")
+    kwargs = parse_kwargs(rest)
+    steps = kwargs.pop("max_episode_steps", None)
+    world = make_gym_world(env_id, **kwargs)
+    if steps is not None:
+        if not isinstance(steps, int) or steps < 1:
+            raise EnvError(f"{spec}: max_episode_steps must be a positive integer")
+        world = dataclasses.replace(world, horizon=steps, name=f"{world.name},max_episode_steps={steps}")
+    return world
+
+
+def refuse_without_dynamics(world, who: str) -> None:
+    """One line for learners whose simulated person needs believed dynamics (PrefBias, EPS) on a gym world."""
+    if isinstance(world, GymWorld):
+        raise EnvError(
+            f"{who} needs an exact log_prob or a learned believed-dynamics model; gym worlds have neither yet"
+        )
