@@ -172,13 +172,13 @@ class Carry(NamedTuple):
     queries: jax.Array
 
 
-def init_carry(keys: jax.Array, learner: Learner, env: Env, params, cfg) -> Carry:
-    """Every seed's fresh carry (``keys [S]``)."""
+def init_carry(keys: jax.Array, learner: Learner, env: Env, params, cfg, start=None) -> Carry:
+    """Every seed's fresh carry (``keys [S]``); ``start``: see :func:`~mindgap.algorithms.sac_loop.loop_init`."""
     d, a = dims(env)
 
     def one(k):
         model, k_loop, k_run = learner.init(k, env, cfg)
-        loop = loop_init(k_loop, env, params, learner.agent_sac(cfg), cfg.total_steps)
+        loop = loop_init(k_loop, env, params, learner.agent_sac(cfg), cfg.total_steps, start)
         prefs = prefs_init(max(cfg.queries, 1), cfg.segment, d, a, absorbing=learner.absorbing(cfg))
         return Carry(loop, model, prefs, k_run, jnp.zeros((), jnp.int32))
 

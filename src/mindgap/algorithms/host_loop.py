@@ -29,33 +29,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import rng
-from ..data.prefs import prefs_init
-from ..data.replay import replay_add, replay_init, terminal_bonus
+from ..data.replay import replay_add, terminal_bonus
 from ..envs.interface import Env, check_env
 from ..models.actor import greedy_action, sample_action
 from .colored_noise import colored_noise
-from .engine import Carry, Learner, WorldArgs, drive, phase_at
-from .sac import SACConfig, sac_init
+from .engine import Carry, Learner, WorldArgs, drive, init_carry, phase_at
+from .sac import SACConfig
 from .sac_loop import LoopState, sac_updates
-
-
-def init_host_carry(keys: jax.Array, learner: Learner, env: Env, cfg) -> Carry:
-    """Every seed's fresh carry (``keys [S]``); ``loop.env`` holds the current observation."""
-    d, a = env.observation_space.dim, env.action_space.dim
-    sac = learner.agent_sac(cfg)
-
-    def one(k):
-        model, k_loop, k_run = learner.init(k, env, cfg)
-        k_sac, _, k_ls = jax.random.split(k_loop, 3)  # as sac_loop.loop_init
-        noise = jnp.zeros((sac.noise_length if sac.noise_color > 0 else 0, a), jnp.float32)
-        zero = jnp.zeros((), jnp.int32)
-        loop = LoopState(
-            sac_init(k_sac, d, a, sac), replay_init(cfg.total_steps, d, a), jnp.zeros(d), zero, k_ls, zero, noise
-        )
-        prefs = prefs_init(max(cfg.queries, 1), cfg.segment, d, a, absorbing=learner.absorbing(cfg))
-        return Carry(loop, model, prefs, k_run, zero)
-
-    return jax.vmap(one)(keys)
 
 
 def _act(ls: LoopState, cfg: SACConfig, phase: str):
@@ -198,7 +178,9 @@ def run_host(
     check_env(world.env, who=cfg.method)
     env, w = world.env, WorldArgs(world.params, world.obs_units(), oracle)
     sac_cfg = learner.agent_sac(cfg)
-    carry = init_host_carry(jax.random.split(rng.key(cfg.seed), seeds), learner, env, cfg)
+    d = env.observation_space.dim
+    keys = jax.random.split(rng.key(cfg.seed), seeds)
+    carry = init_carry(keys, learner, env, None, cfg, start=lambda k: jnp.zeros(d))  # loop.env: the observation
     live = {}  # the envs and the next action, made at the first chunk (after any checkpoint is read)
 
     def chunk(c: Carry, phase: str, step: int) -> Carry:

@@ -53,13 +53,14 @@ def dims(env: Env) -> tuple[int, int]:
     return env.observation_space.dim, env.action_space.dim
 
 
-def loop_init(key: jax.Array, env: Env, world_params, cfg: SACConfig, capacity: int) -> LoopState:
+def loop_init(key: jax.Array, env: Env, world_params, cfg: SACConfig, capacity: int, start=None) -> LoopState:
+    """A seed's fresh loop; its world state ``env.reset``'s, or ``start(key)``'s for a world stepped elsewhere."""
     k_sac, k_env, k_run = jax.random.split(key, 3)
     obs_dim, act_dim = dims(env)
     return LoopState(
         sac_init(k_sac, obs_dim, act_dim, cfg),
         replay_init(capacity, obs_dim, act_dim),
-        env.reset(k_env, world_params),
+        env.reset(k_env, world_params) if start is None else start(k_env),
         jnp.zeros((), jnp.int32),
         k_run,
         jnp.zeros((), jnp.int32),
