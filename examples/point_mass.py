@@ -17,7 +17,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from mindgap.envs.interface import Box, Env, Step, World
+from mindgap import Box, Env, Step, World
 
 HORIZON = 40
 SPEED = 0.15  # distance per step at a full push

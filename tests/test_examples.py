@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 
 from mindgap.algorithms import eps, pbrl, prefbias
+from mindgap.algorithms.eps_config import eps_config
 from mindgap.algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
+from mindgap.algorithms.explicability import explicability_scores
 from mindgap.cli import main
 from mindgap.envs.interface import Box, Discrete, EnvError
 from mindgap.envs.resolve import resolve_env
@@ -66,9 +68,9 @@ def test_prefbias_runs_on_it(world, tmp_path):
 def test_eps_runs_on_it(world, tmp_path, monkeypatch):
     monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
     person = expectation_teacher(world, policy_cfg=ExpectedPolicyConfig.fast())
-    res = eps.train(world, eps.eps_config("fast"), person, seeds=2, progress=False)
+    res = eps.train(world, eps_config("fast"), person, seeds=2, progress=False)
     assert np.all(np.isfinite(res["final_returns"])) and max(r[3] for r in res["curve"]) == 30
-    scores = eps.explicability_scores(jax.random.key(1), world, person, res["carry"].loop.sac.params.actor, 4)
+    scores = explicability_scores(jax.random.key(1), world, person, res["carry"].loop.sac.params.actor, 4)
     assert all(np.isfinite(s["score"]) for s in scores)
     out = tmp_path / "eps"
     argv = ["eps", "--env", SPEC, "--fast", "--seeds", "2", "--rollouts", "4", "--quiet", *QUIET_SAC, "--out", str(out)]

@@ -4,7 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
-mindgap reproduce nav|priors|sampling|eps|lambda [--fast] [--seeds N] [--worlds W,W] [--out DIR]
+mindgap reproduce nav|priors|sampling|eps|lambda [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
@@ -35,6 +35,13 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--fast", action="store_true", help="the quick preset (seconds to minutes)")
     r.add_argument("--seeds", type=int, help="seeds per setting (overrides the preset)")
     r.add_argument("--worlds", help="terrain experiments: a comma-separated subset of the worlds (names or files)")
+    r.add_argument(
+        "--env",
+        action="append",
+        metavar="SPEC",
+        help="terrain experiments: run on this world instead (repeatable): a named world, a world file, "
+        "or path.py:factory[,key=value…] with a belief and an exact log_prob",
+    )
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
@@ -138,8 +145,9 @@ def _reproduce(args) -> int:
 
     if args.assemble and (args.fresh or args.shard):
         raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
-    if args.worlds and args.name not in TERRAIN_EXPERIMENTS:
-        raise ValueError(f"--worlds belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
+    for flag in ("worlds", "env"):
+        if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
+            raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
     if args.name == "coffee":
         from .experiments import coffee_cli
 

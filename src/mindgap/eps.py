@@ -15,11 +15,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._api import RunResult
-from .algorithms.eps import EPSConfig as Config
-from .algorithms.eps import eps_config
-from .algorithms.eps import explicability_scores as explicability_scores
 from .algorithms.eps import train as _train
+from .algorithms.eps_config import EPSConfig as Config
+from .algorithms.eps_config import eps_config
 from .algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
+from .algorithms.explicability import explicability_scores as explicability_scores
 from .envs.interface import World
 from .teachers.expectation import ExpectationTeacher
 from .teachers.host import HostTeacher

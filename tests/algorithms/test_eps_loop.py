@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mindgap.algorithms import engine, eps
-from mindgap.algorithms.eps import EPSConfig, eps_config
+from mindgap.algorithms.eps_config import EPSConfig, eps_config
 from mindgap.algorithms.eps_maps import surrogate_maps
 from mindgap.algorithms.eps_reward import environment_entropy, eps_reward
 from mindgap.algorithms.sac import SACConfig, sac_init

@@ -54,11 +54,12 @@ def test_resume_after_a_kill_gives_a_complete_curve(tmp_path, monkeypatch, capsy
 
 def test_learners_that_need_dynamics_refuse_gym_worlds(tmp_path, capsys):
     from mindgap.algorithms import eps, prefbias
+    from mindgap.algorithms.eps_config import eps_config
 
     world = resolve_env(ENV)
     for mod, who, args in (
         (prefbias, "PrefBias", (prefbias.prefbias_config("fast"),)),
-        (eps, "EPS", (eps.eps_config("fast"), None)),
+        (eps, "EPS", (eps_config("fast"), None)),
     ):
         with pytest.raises(EnvError) as e:
             mod.train(world, *args, progress=False)

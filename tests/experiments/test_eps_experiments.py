@@ -16,13 +16,14 @@ import numpy as np
 import pytest
 
 from mindgap import rng
-from mindgap.algorithms.eps import explicability_scores
 from mindgap.algorithms.expected_policy import ExpectedPolicyConfig
+from mindgap.algorithms.explicability import explicability_scores
 from mindgap.algorithms.policy_shaping import ShapedPolicy, shaped_dist
 from mindgap.algorithms.sac import SACConfig, sac_init
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
 from mindgap.experiments import eps_common as ec
+from mindgap.experiments import world_measures
 from mindgap.teachers.expectation import ExpectationTeacher
 
 GREEDY = {"eps": 90.0, "sac": 100.0, "drlhp": -100.0}
@@ -81,15 +82,16 @@ def stand_ins(monkeypatch):
         steps = range(cfg.eval_every, cfg.total_steps + 1, cfg.eval_every)
         greedy = GREEDY[method] - 10 * lam
         curve = [(s, t, greedy * t / cfg.total_steps, 0) for t in steps for s in range(seeds)]
-        path = ROUTES[world.name][TAKES[world.name][method]]
+        mapped = world_measures.has_map(world)
+        path = ROUTES[world.name][TAKES[world.name][method]] if mapped else np.linspace([-0.7, 0.0], [0.6, 0.0], 9)
         actors[job.key] = _actors(job.key, seeds, cfg.sac.hidden)
-        h, w = np.asarray(world.params.grid).shape
+        h, w = np.asarray(world.params.grid).shape if mapped else (1, 1)
         return {
             "curve": curve,
             "final_returns": np.full((seeds, 4), greedy),
             "paths": [[path, path] for _ in range(seeds)],
             "actor": actors[job.key],
-            "u_map": None if method == "sac" else np.linspace(-1, 1, h * w * 16).reshape(h * 4, w * 4),
+            "u_map": None if method == "sac" or not mapped else np.linspace(-1, 1, h * w * 16).reshape(h * 4, w * 4),
         }
 
     def fake_person(world, belief=None, *, unbiased=False, policy_cfg=None, cache_dir=None):
@@ -154,6 +156,35 @@ def test_eps_fast_tables_figures_shaping_and_resume(stand_ins, tmp_path, capsys)
     assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
 
 
+def test_eps_fast_on_a_users_world(stand_ins, tmp_path, capsys):
+    """``--env`` with a user's factory: π_H's record, Policy Shaping and the scores through the interface."""
+    calls, actors = stand_ins
+    spec = "examples/point_mass.py:make_world"
+    out = tmp_path / "eps"
+    assert main(["reproduce", "eps", "--fast", "--quiet", "--env", spec, "--out", str(out)]) == 0
+    assert sorted(calls) == sorted(f"{spec}/{m}" for m in ("sac", "drlhp", "eps-lam2", "eps-lam2-unbiased"))
+    results = rows(out / "results.csv")
+    assert {r["method"] for r in results} == {"eps", "sac", "drlhp", "shaping"}
+    for r in results:
+        assert np.isfinite(float(r["return_mean"])) and np.isfinite(float(r["explicability_mean"]))
+        assert r["required_route"] == "nan" and r["goal_rate"] == "nan"  # no map, no route to judge
+    world = world_measures.experiment_world(spec, "eps")
+    person = ec.expectation_teacher(world, policy_cfg=ExpectedPolicyConfig.fast())
+    ones = np.ones(1, np.float32)
+    shaped = ShapedPolicy(actors[f"{spec}/sac"], actors[f"{spec}/drlhp"], ones, ones)
+    want = explicability_scores(rng.key(20_000), world, person, shaped, 10, agent_dist=shaped_dist)
+    rec = json.loads(next((out / "jobs").glob("*__shaping.json")).read_text())
+    assert rec["explicability"] == pytest.approx([s["score"] for s in want], rel=1e-5)
+    assert len(rec["paths"][0]) == 3 and np.asarray(rec["paths"][0][0]).shape[1] == 2  # greedy rollouts, traced
+    person_rec = json.loads(next((out / "jobs").glob("*__person-biased.json")).read_text())
+    assert person_rec["plan_return"] is None and np.isfinite(person_rec["obey_return"])
+    assert [p["world"] for p in rows(out / "person.csv")] == [spec]
+    assert "| point-mass |" in capsys.readouterr().out
+    assert not any("route" in c["text"] for c in json.loads((out / "summary.json").read_text())["claims"])
+    for name in ("trajectories.png", "unbiased.png", "curves_point-mass.png", "table.md"):
+        assert (out / name).stat().st_size > 0, name
+
+
 def test_lambda_fast_routes_and_trend(stand_ins, tmp_path, capsys):
     calls, _ = stand_ins
     out = tmp_path / "lambda"
@@ -186,7 +217,7 @@ def test_required_route_on_hand_made_routes():
     d1, d3, d4 = (load_world(w) for w in ("d1", "d3", "d4"))
 
     def judge(world, path, goal=1.0):
-        route = ec.pc.route_of(world, [path])
+        route = world_measures.route_of(world, [path])
         route["goal"] = goal if goal != 1.0 else route["goal"]
         return ec.required_route(world, route, person)
 
@@ -194,7 +225,7 @@ def test_required_route_on_hand_made_routes():
     assert judge(d4, ROUTES["d4"]["sand"]) and not judge(d4, ROUTES["d4"]["ice"])
     assert not judge(d3, ROUTES["d3"]["ice"], goal=0.0)  # a route that never arrives is no route
     assert judge(d1, ROUTES["d1"]["detour"]) and not judge(d1, ROUTES["d1"]["hug"])
-    route = ec.pc.route_of(d1, [ROUTES["d1"]["detour"]])
+    route = world_measures.route_of(d1, [ROUTES["d1"]["detour"]])
     near = {"optimal": {"pit_mean": route["pit_mean"] - 0.2}, "expected": {"pit_mean": route["pit_mean"] + 0.4}}
     assert not ec.required_route(d1, route, near)  # nearer the optimal berth than the person's
     assert ec.required_route(d1, route, {**near, "expected": None}) is None

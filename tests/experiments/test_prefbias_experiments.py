@@ -24,6 +24,7 @@ from mindgap.algorithms import pbrl, prefbias
 from mindgap.cli import main
 from mindgap.envs.terrain import load_world
 from mindgap.experiments import prefbias_common as pc
+from mindgap.experiments import world_measures as wm
 from mindgap.models.mlp import init_mlp, init_stack
 from mindgap.models.prefbias_nets import reward_sizes
 from mindgap.planning.terrain_maps import table_noise_map
@@ -76,9 +77,10 @@ def _fake_result(world, cfg, seeds, method):
                 posterior=SimpleNamespace(reward=SimpleNamespace(mean=_stack([init_mlp(k, sizes) for k in keys])))
             )
         )
-        wall = np.isnan(np.asarray(table_noise_map(world.params)))
-        noise = np.where(wall, np.nan, 0.1 + 0.01 * np.arange(seeds)[:, None, None])
-        res["belief_noise"], res["dynamics_noise"] = noise, noise * 0.5
+        if wm.has_map(world):
+            wall = np.isnan(np.asarray(table_noise_map(world.params)))
+            noise = np.where(wall, np.nan, 0.1 + 0.01 * np.arange(seeds)[:, None, None])
+            res["belief_noise"], res["dynamics_noise"] = noise, noise * 0.5
     else:
         params = _stack([init_stack(k, cfg.reward.members, (4, *cfg.reward.hidden, 1)) for k in keys])
         res["carry"] = SimpleNamespace(model=SimpleNamespace(params=params))
@@ -171,6 +173,49 @@ def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path,
     assert "--shard is not supported" in capsys.readouterr().err
 
 
+REAL_REFERENCE = pc._reference
+POINT_MASS = "examples/point_mass.py:make_world"
+
+
+def test_nav_fast_on_a_users_world(stand_ins, tmp_path, capsys, monkeypatch):
+    """``--env`` with a user's factory: the learners' jobs, a real random reference, no routes."""
+    monkeypatch.setattr(pc, "_reference", REAL_REFERENCE)
+    out = tmp_path / "nav"
+    argv = ["reproduce", "nav", "--fast", "--quiet", "--env", POINT_MASS, "--env", POINT_MASS + ",drift=0.1"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert sorted({w for _, w, _ in stand_ins}) == ["point-mass", "point-mass(drift=0.1)"]
+    results = rows(out / "results.csv")
+    assert sorted(r["world"] for r in results) == sorted([POINT_MASS] * 3 + [POINT_MASS + ",drift=0.1"] * 3)
+    reference = json.loads(next((out / "jobs").glob("*make_world__reference.json")).read_text())
+    assert reference["plan_return"] is None and reference["random_return"] < 0
+    for r in results:
+        norm = (FINAL[r["method"]] - reference["random_return"]) / (FINAL["sac"] - reference["random_return"])
+        if r["world"] == POINT_MASS:
+            assert float(r["normalised_mean"]) == pytest.approx(norm, abs=1e-4)
+        assert r["better_route"] == "nan" and r["goal_rate"] == "nan"
+        if r["method"] != "sac":
+            assert 0 <= float(r["reward_error_mean"]) <= 2
+    claims = [c["text"] for c in json.loads((out / "summary.json").read_text())["claims"]]
+    assert claims and not any("most seeds" in c for c in claims)  # no route to judge
+    for name in ("curves_point-mass.png", "trajectories_point-mass(drift=0.1).png"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_an_experiment_refuses_a_world_it_cannot_use_and_writes_nothing(tmp_path, capsys):
+    for spec, says in (
+        ("gym:Pendulum-v1", "nav needs a pure-JAX world with a belief and an exact density"),
+        ("no/such/file.py:make", "no such file: no/such/file.py"),
+        (POINT_MASS + ",drift", "expected key=value, got 'drift'"),
+    ):
+        out = tmp_path / "nav"
+        assert main(["reproduce", "nav", "--fast", "--env", spec, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert says in err and err.count("\n") == 1 and "Traceback" not in err
+        assert not out.exists()
+    assert main(["reproduce", "table1", "--fast", "--env", "nav1"]) == 2
+    assert "--env belongs to the terrain experiments" in capsys.readouterr().err
+
+
 def test_priors_fast_reports_belief_and_reward_errors(stand_ins, tmp_path, capsys):
     out = tmp_path / "priors"
     printed = _run_twice("priors", out, stand_ins, capsys, n_jobs=4)  # reference, SAC, two priors
@@ -208,27 +253,46 @@ def test_sampling_fast_compares_the_four_samplers(stand_ins, tmp_path, capsys):
 def test_metrics_on_hand_made_inputs():
     nav1, nav2 = load_world("nav1"), load_world("nav2")
     # routes: the icy corridor is nav1's better route, the sandy one is not; half-way is not arriving
-    assert pc.route_of(nav1, [ICE_ROUTE] * 3)["better"] is True
-    sand = pc.route_of(nav1, [SAND_ROUTE] * 3)
+    assert wm.route_of(nav1, [ICE_ROUTE] * 3)["better"] is True
+    sand = wm.route_of(nav1, [SAND_ROUTE] * 3)
     assert sand["better"] is False and sand["goal"] == 1.0 and sand["sand"] > 0.5
-    assert pc.route_of(nav1, [ICE_ROUTE[:20]] * 3)["better"] is False
+    assert wm.route_of(nav1, [ICE_ROUTE[:20]] * 3)["better"] is False
     # nav2 is judged by the distance to the pit against the two planned routes
     ref = {"optimal": {"pit_mean": 1.0}, "expected": {"pit_mean": 1.8}}
-    assert pc.better_route(pc.route_of(nav2, [NEAR_ROUTE]), ref) is True
-    assert pc.better_route(pc.route_of(nav2, [FAR_ROUTE]), ref) is False
+    assert wm.better_route(wm.route_of(nav2, [NEAR_ROUTE]), ref) is True
+    assert wm.better_route(wm.route_of(nav2, [FAR_ROUTE]), ref) is False
     # the normalised score
     np.testing.assert_allclose(pc.normalised([-100.0, -50.0, 0.0], -100.0, 0.0), [0.0, 0.5, 1.0])
     assert np.isnan(pc.normalised([1.0], 0.0, -1.0)).all()
     # the reward error is 0 for the truth up to offset and scale, 2 for its reverse, ~1.41 for noise
-    _, _, truth = pc.reward_grid(nav1)
+    *_, truth = wm.reward_grid(nav1)
     noise = np.random.default_rng(0).standard_normal(truth.shape)
 
     def scaled(p, obs, act, next_obs):
         return p[0] * jnp.asarray(truth) + p[1] + p[2] * jnp.asarray(noise)
 
-    err = pc.reward_error(nav1, scaled, jnp.array([[3.0, 5.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
+    err = wm.reward_error(nav1, scaled, jnp.array([[3.0, 5.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
     np.testing.assert_allclose(err[:2], [0.0, 2.0], atol=1e-5)
     assert abs(err[2] - np.sqrt(2)) < 0.1
+
+
+def test_measures_on_a_world_without_a_map():
+    """A user's world: random return and reward error from the interface, no routes."""
+    world = wm.experiment_world("examples/point_mass.py:make_world,drift=0.1", "nav")
+    assert world.name == "point-mass(drift=0.1)" and not wm.has_map(world)
+    assert wm.route_of(world, [np.zeros((3, 2))]) == wm.NO_ROUTE
+    ref = wm.reference_record(world, episodes=20, seed=0, plan_resolution=2, plan_rollouts=10)
+    assert ref["plan_return"] is None and ref["optimal"] is None
+    assert -2.0 * world.horizon < ref["random_return"] < 0  # minus a distance of at most ~2 a step
+    obs, act, nxt, truth = wm.reward_grid(world)
+    assert obs.shape == nxt.shape and obs.shape[1] == 2 and act.shape == obs.shape and truth.shape == (len(obs),)
+    assert 20 <= len(obs) <= 50 * world.horizon
+
+    def env_reward(sign, obs, act, next_obs):
+        return sign * jax.vmap(lambda o, a, n: world.env.reward(o, a, n, world.params))(obs, act, next_obs)
+
+    err = wm.reward_error(world, env_reward, jnp.array([1.0, -1.0]))
+    assert err[0] < 0.2 and err[1] > 1.8  # the realised reward against its mean over 32 draws
 
 
 def _real(name, tmp_path, capsys):

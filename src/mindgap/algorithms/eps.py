@@ -27,6 +27,9 @@ every world: the spread, in nats, that one unit of the standardised u_H stands f
 agent optimising the standardised u_H alone (no r_A, no H_T; SAC's α tuned as usual).
 T_A is not retrained once the query budget is spent: the reward is then fixed, as in the
 engine's other methods.
+
+The configuration is :mod:`~mindgap.algorithms.eps_config`'s; the explicability score of a
+trained policy is :func:`~mindgap.algorithms.explicability.explicability_scores`.
 """
 
 from __future__ import annotations
@@ -42,119 +45,21 @@ import jax.numpy as jnp
 from ..data.fingerprint import fingerprint
 from ..envs.gym_world import refuse_without_dynamics
 from ..envs.interface import Env, check_env
-from ..feedback.queries import SAMPLERS, select_queries
-from ..models.actor import actor_dist
-from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
-from ..models.reward_ensemble import RewardConfig, RewardState, preference_probs, reward_init, train_reward
+from ..feedback.queries import select_queries
+from ..models.gaussian_dynamics import DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
+from ..models.reward_ensemble import RewardState, preference_probs, reward_init, train_reward
 from ..teachers.expectation import ExpectationTeacher
 from ..teachers.host import HostTeacher
-from .engine import FAST_SCHEDULE, Learner, Schedule, WorldArgs, run, run_record
+from .engine import Learner, WorldArgs, run, run_record
+from .eps_config import EPSConfig
 from .eps_reward import (
     EPSRewardParams,
     ExactSurrogate,
     entropy_mean_from_replay,
     eps_reward,
-    eps_sac_config,
     normalised_u,
     u_norm_from_replay,
 )
-from .explicability import explicability
-from .sac import SACConfig
-
-METHODS = ("eps", "drlhp")
-SURROGATES = ("learned", "exact")
-
-
-@dataclasses.dataclass(frozen=True)
-class EPSConfig(Schedule):
-    """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument).
-
-    The schedule's fields (steps, chunks, evaluation, SAC, budget, teacher knobs) are
-    :class:`~mindgap.algorithms.engine.Schedule`'s; for EPS the SAC's α is replaced by
-    λ·reward_scale/nats_per_unit.
-    """
-
-    method: str = "eps"
-    """eps (Algorithm 3) or drlhp (u_H alone, the baseline of §4.4.1.1)."""
-    lam: float = 2.0
-    """λ, the reconciliation factor of Eq. 4.6 (the dissertation tunes it in [2.0, 2.8])."""
-    total_steps: int = 60_000
-    """Environment steps per seed."""
-    reward: RewardConfig = RewardConfig()
-    """The ensemble that learns u_H."""
-    dynamics: DynamicsConfig = DynamicsConfig()
-    """T_A, the agent's Gaussian dynamics model (H_T)."""
-    per_round: int = 80
-    """Queries per feedback round."""
-    sampler: str = "disagreement"
-    """uniform, disagreement or entropy (uncertainty sampling, §4.3.3)."""
-    candidates: int = 10
-    """Pairs drawn per query kept (score-based samplers)."""
-    nats_per_unit: float = 7.0
-    """s_H: the per-step spread, in nats, of the person's log T_H + log π_H that one unit of the
-    standardised u_H stands for; the policy entropy is weighted λ/s_H (α = λ·reward_scale/s_H) so
-    that u_H + H_π keeps the balance of the KL it comes from. Fixed across worlds: measured 6.6–7.2
-    over uniform-random transitions of d1–d4 and 7.4 over EPS's d3 buffers. With 7, λ = 2 gives
-    α ≈ 0.29. A weight of λ itself (``nats_per_unit=1``, α = 2 — eight times SAC's tuned α in d3)
-    gave a wider policy, less explicable than SAC's on the same road (d3: −501 against −425;
-    narrowing the trained policies' pre-tanh std by e⁻¹ alone took them to −399). Trained with
-    λ/7, d3's EPS earns 101.1 instead of 97.2, but its explicability did not improve
-    (−569 ± 160, 5 seeds)."""
-    centre_entropy: bool = False
-    """Subtract H_T's mean over the buffer, as u_H is centred (a differential entropy's constant
-    depends on the units of the state). Off by default, as Eq. 4.6 is written: measured on d1
-    and d3 (3 seeds, 40 000 steps), centring left every seed idling short of the goal, while
-    the uncentred H_T — about −3 nats per step in cells where T_A fits well — charges each
-    step and keeps the agent moving (d1: 2 of 3 seeds reach the goal by a wide detour)."""
-
-    surrogate: str = "learned"
-    """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:
-    u_H is the person's own per-step log T_H + log π_H (:class:`~.eps_reward.ExactSurrogate`),
-    standardised over the buffer the same way; no query is asked (the rounds still come on the
-    same schedule, refit T_A and relabel, and count their budget as shown). An oracle
-    ablation, not a method: it needs the person's models, which only a simulation has."""
-
-    def check(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
-        if self.surrogate not in SURROGATES:
-            raise ValueError(f"unknown surrogate {self.surrogate!r}: choose from {', '.join(SURROGATES)}")
-        if self.sampler not in SAMPLERS:
-            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
-        if self.lam < 0:
-            raise ValueError(f"λ must be non-negative, got {self.lam}")
-        if not self.nats_per_unit > 0:
-            raise ValueError(f"nats_per_unit must be positive, got {self.nats_per_unit}")
-        self.check_schedule()
-        if self.queries < 1 or self.per_round < 1:
-            raise ValueError("queries and per_round must be at least 1")
-
-    def as_dict(self) -> dict:
-        d = super().as_dict()
-        if self.surrogate == "learned":  # recorded only when set, so earlier run folders still resume
-            del d["surrogate"]
-        return d
-
-    def agent_sac(self) -> SACConfig:
-        """The SAC the agent runs: α fixed to λ·reward_scale/nats_per_unit for EPS, as configured for DRLHP."""
-        return eps_sac_config(self.sac, self.lam, self.nats_per_unit) if self.method == "eps" else self.sac
-
-
-_FAST = dict(
-    **FAST_SCHEDULE,
-    reward=RewardConfig(members=2, hidden=(8, 8), updates=10, batch_size=8),
-    dynamics=DynamicsConfig(hidden=(8, 8), max_epochs=3, steps_per_epoch=5, batch_size=32),
-)
-PRESETS = ("full", "fast")
-
-
-def eps_config(preset: str = "full", **overrides) -> EPSConfig:
-    """A preset with ``overrides`` applied, checked (``fast``: tiny networks, 1500 steps; for tests)."""
-    if preset not in PRESETS:
-        raise ValueError(f"unknown preset {preset!r}: choose from {', '.join(PRESETS)}")
-    cfg = EPSConfig(**{**(_FAST if preset == "fast" else {}), **overrides})
-    cfg.check()
-    return cfg
 
 
 class EPSModel(NamedTuple):
@@ -293,33 +198,3 @@ def train(
         )
         teacher = oracle = dataclasses.replace(person, cfg=cfg.teacher)
     return run(world, LEARNER, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle)
-
-
-def explicability_scores(key, world, person: ExpectationTeacher, actors, episodes: int = 100, agent_dist=actor_dist):
-    """Explicability score (Eq. 4.4) of each seed's policy over ``episodes`` stochastic rollouts.
-
-    Args:
-        actors: the policies' parameters with a leading seed axis: SAC actors, or what
-            ``agent_dist`` reads (e.g. a :class:`~mindgap.algorithms.policy_shaping.ShapedPolicy`
-            with :func:`~mindgap.algorithms.policy_shaping.shaped_dist`).
-
-    Returns:
-        one dict per seed: score, its standard error, its dynamics and policy parts
-        (see :class:`~mindgap.algorithms.explicability.Explicability`) and the mean return
-        of those rollouts.
-    """
-    seeds = jax.tree.leaves(actors)[0].shape[0]
-    out = []
-    for s, k in enumerate(jax.random.split(key, seeds)):
-        actor = jax.tree.map(lambda a: a[s], actors)
-        e = explicability(k, world, person.belief, actor, person.policy, episodes, agent_dist)
-        out.append(
-            {
-                "score": float(e.score),
-                "stderr": float(e.stderr),
-                "dynamics_part": float(e.dynamics),
-                "policy_part": float(e.policy),
-                "stochastic_return": float(jnp.mean(e.returns)),
-            }
-        )
-    return out

@@ -9,7 +9,8 @@ import jax.numpy as jnp
 
 from ..teachers.expectation import ExpectationTeacher
 from .engine import Carry
-from .eps import EPSConfig, u_params
+from .eps import u_params
+from .eps_config import EPSConfig
 from .eps_reward import raw_u
 
 

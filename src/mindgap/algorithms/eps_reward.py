@@ -20,10 +20,8 @@ which preferences cannot reveal (Bradley–Terry answers fix no scale, and the e
 rewards are bounded). Weighting H_π by λ would then make the KL-optimal policy π_H tempered
 by ``s_H`` (each action dimension ``√s_H`` times wider), so H_π is weighted ``λ / s_H``:
 ``α = λ·c / s_H`` with one fixed ``s_H`` for every world (``EPSConfig.nats_per_unit``,
-7 nats: the spread of the simulated persons' ``log T_H + log π_H`` is 6.6–7.2 nats per step
-over uniform-random transitions of d1–d4, 7.4 over EPS's own d3 buffers). The same argument
-would weight H_T (the dynamics part of the KL) λ/s_H too; it keeps Eq. 4.6's λ, the weight
-every measured run used.
+7 nats; how it was chosen: docs/eps.md). The same argument would weight H_T (the dynamics
+part of the KL) λ/s_H too; it keeps Eq. 4.6's λ (docs/eps.md).
 
 Normalisation of u_H (§4.3.3: "we simply normalize the learned rewards"): Bradley–Terry
 fixes u_H only up to an additive constant per step and a scale tied to the person's β,

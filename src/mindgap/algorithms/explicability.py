@@ -120,3 +120,35 @@ def _explicability(key, params, belief, agent, expected_actor, env, episodes, ho
     per_episode = -(log_t + log_pi)
     stderr = jnp.std(per_episode) / jnp.sqrt(jnp.maximum(episodes - 1, 1))
     return Explicability(per_episode.mean(), stderr, log_t.mean(), log_pi.mean(), per_episode, returns)
+
+
+def explicability_scores(key, world, person, actors, episodes: int = 100, agent_dist=actor_dist):
+    """Explicability score (Eq. 4.4) of each seed's policy over ``episodes`` stochastic rollouts.
+
+    Args:
+        person: the simulated person (its ``belief`` params and expected policy ``policy``; a
+            :class:`~mindgap.teachers.expectation.ExpectationTeacher`).
+        actors: the policies' parameters with a leading seed axis: SAC actors, or what
+            ``agent_dist`` reads (e.g. a :class:`~mindgap.algorithms.policy_shaping.ShapedPolicy`
+            with :func:`~mindgap.algorithms.policy_shaping.shaped_dist`).
+
+    Returns:
+        one dict per seed: score, its standard error, its dynamics and policy parts
+        (see :class:`Explicability`) and the mean return
+        of those rollouts.
+    """
+    seeds = jax.tree.leaves(actors)[0].shape[0]
+    out = []
+    for s, k in enumerate(jax.random.split(key, seeds)):
+        actor = jax.tree.map(lambda a: a[s], actors)
+        e = explicability(k, world, person.belief, actor, person.policy, episodes, agent_dist)
+        out.append(
+            {
+                "score": float(e.score),
+                "stderr": float(e.stderr),
+                "dynamics_part": float(e.dynamics),
+                "policy_part": float(e.policy),
+                "stochastic_return": float(jnp.mean(e.returns)),
+            }
+        )
+    return out

@@ -78,13 +78,3 @@ def shaped_sample(policy: ShapedPolicy, obs: jax.Array, key: jax.Array) -> tuple
 def shaped_greedy(policy: ShapedPolicy, obs: jax.Array) -> jax.Array:
     """tanh of the product's mean: the deterministic action for evaluation."""
     return jnp.tanh(shaped_dist(policy, obs)[0])
-
-
-def shaped_position_policy(pp: tuple[ShapedPolicy, jax.Array], pos: jax.Array) -> jax.Array:
-    """Greedy shaped action from a position, for :func:`~mindgap.planning.terrain.rollouts`.
-
-    ``pp = (policy, size)`` with ``size = [width, height]`` of the world (cells): the
-    observation the actors read is ``2 · pos / size − 1``.
-    """
-    policy, size = pp
-    return shaped_greedy(policy, 2.0 * pos / size - 1.0)

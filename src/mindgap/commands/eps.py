@@ -63,9 +63,11 @@ def run(args: argparse.Namespace) -> int:
 
     from .. import rng
     from .._io import atomic_write
-    from ..algorithms.eps import EPSConfig, eps_config, explicability_scores, train
+    from ..algorithms.eps import train
+    from ..algorithms.eps_config import EPSConfig, eps_config
     from ..algorithms.eps_maps import surrogate_maps
     from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
+    from ..algorithms.explicability import explicability_scores
     from ..envs.resolve import resolve_env
     from ..envs.terrain import TerrainWorld
     from ..plotting.terrain import save_fields

@@ -31,18 +31,16 @@ import numpy as np
 from .. import rng
 from ..algorithms import eps as eps_alg
 from ..algorithms import pbrl
-from ..algorithms.eps import EPSConfig, eps_config, explicability_scores
+from ..algorithms.eps_config import EPSConfig, eps_config
 from ..algorithms.eps_maps import surrogate_maps
 from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
-from ..algorithms.explicability import explicability
-from ..algorithms.policy_shaping import ShapedPolicy, shaped_dist, shaped_position_policy
+from ..algorithms.explicability import explicability, explicability_scores
+from ..algorithms.policy_shaping import ShapedPolicy, shaped_dist, shaped_greedy
 from ..algorithms.sac import sac_init
-from ..algorithms.sac_loop import evaluate
+from ..algorithms.sac_loop import dims, evaluate, rollouts
 from ..checkpoint import load_pytree, save_pytree
-from ..envs.terrain import load_world
-from ..planning.terrain import rollouts
-from ..planning.terrain_check import check_world
 from . import prefbias_common as pc
+from . import world_measures as wm
 from ._runfolder import RunFolder
 
 PERSONS = ("biased", "unbiased")
@@ -68,7 +66,7 @@ class EPSLearners:
 
 def learners(preset: str) -> EPSLearners:
     """``full``: EPS's defaults (60 000 steps, 800 queries, 80 a round, λ 2) and a π_H of 60 000
-    steps; ``fast``: :func:`~mindgap.algorithms.eps.eps_config` ``("fast")``, a tiny π_H and 10 rollouts."""
+    steps; ``fast``: :func:`~mindgap.algorithms.eps_config.eps_config` ``("fast")``, a tiny π_H and 10 rollouts."""
     if preset == "full":
         e, person, roll, paths, res = eps_config("full"), ExpectedPolicyConfig(), 100, 10, 4
     elif preset == "fast":
@@ -120,7 +118,7 @@ def compute(learn: EPSLearners):
     """The ``compute`` of :func:`~.prefbias_common.run_jobs` for these experiments."""
 
     def run(folder: RunFolder, job: pc.Job, seeds: int, *, fresh: bool, progress: bool) -> dict:
-        world = load_world(job.world)
+        world = wm.experiment_world(job.world, "this experiment")
         person = _person(world, learn, job.tags["person"])
         if job.method == "person":
             return _person_record(world, person, learn)
@@ -153,7 +151,7 @@ def train(world, job: pc.Job, seeds: int, out, person, *, fresh: bool, progress:
     else:
         res = eps_alg.train(world, job.cfg, person, person_name=job.tags["person"], **kw)
         c = res["carry"]
-        u_map = np.asarray(surrogate_maps(c, world.params, person, job.cfg)).mean(0)
+        u_map = np.asarray(surrogate_maps(c, world.params, person, job.cfg)).mean(0) if wm.has_map(world) else None
     return {
         **{k: res[k] for k in ("curve", "final_returns", "paths")},
         "actor": res["carry"].loop.sac.params.actor,
@@ -181,7 +179,7 @@ def learned_record(world, person, learn: EPSLearners, res: dict, seed: int = 0) 
 
 
 def _scores(scores: list[dict]) -> dict:
-    """Per-seed lists of :func:`~mindgap.algorithms.eps.explicability_scores`' fields."""
+    """Per-seed lists of :func:`~mindgap.algorithms.explicability.explicability_scores`' fields."""
     return {
         "explicability": [s["score"] for s in scores],
         "explicability_stderr": [s["stderr"] for s in scores],
@@ -194,7 +192,7 @@ def _scores(scores: list[dict]) -> dict:
 def _paths_and_routes(world, paths) -> dict:
     return {
         "paths": [[np.round(np.asarray(p, np.float64), 4).tolist() for p in seed] for seed in paths],
-        "routes": [pc.route_of(world, seed) for seed in paths],
+        "routes": [wm.route_of(world, seed) for seed in paths],
     }
 
 
@@ -202,12 +200,13 @@ def _actor_path(folder: RunFolder, key: str):
     return folder.root / "actors" / (key.replace("/", "__") + ".npz")
 
 
-def load_actors(folder: RunFolder, key: str, sac_cfg, seeds: int):
-    """The SAC actors a finished job stored (a leading seed axis)."""
+def load_actors(folder: RunFolder, key: str, env, sac_cfg, seeds: int):
+    """The SAC actors a finished job stored (a leading seed axis) for ``env``'s spaces."""
     path = _actor_path(folder, key)
     if not path.exists():
         raise RuntimeError(f"{key}'s policies are missing from {folder.root}; rerun with --fresh")
-    template = jax.vmap(lambda k: sac_init(k, 2, 2, sac_cfg).params.actor)(jax.random.split(rng.key(0), seeds))
+    d, a = dims(env)
+    template = jax.vmap(lambda k: sac_init(k, d, a, sac_cfg).params.actor)(jax.random.split(rng.key(0), seeds))
     return load_pytree(path, template)[0]
 
 
@@ -216,19 +215,17 @@ def _shaping_record(folder: RunFolder, world, person, learn: EPSLearners, job: p
     env_key, fb_key = job.cfg
     ones = jnp.ones(seeds, jnp.float32)  # the plain product, one weight per seed (every leaf has the seed axis)
     policy = ShapedPolicy(
-        load_actors(folder, env_key, learn.sac.sac, seeds),
-        load_actors(folder, fb_key, learn.eps.sac, seeds),
+        load_actors(folder, env_key, world.env, learn.sac.sac, seeds),
+        load_actors(folder, fb_key, world.env, learn.eps.sac, seeds),
         ones,
         ones,
     )
-    h, w = world.params.grid.shape
-    size = jnp.array([w, h], jnp.float32)
     final, paths = [], []
     for s, k in enumerate(jax.random.split(rng.key(30_000 + learn.sac.seed), seeds)):
         one = jax.tree.map(lambda a: a[s], policy)
-        pos, rew, alive = rollouts(k, world.params, shaped_position_policy, max(learn.paths, 20), (one, size))
+        obs, rew, alive = rollouts(k, world.env, world.params, shaped_greedy, one, max(learn.paths, 20), world.horizon)
         final.append(float(np.asarray(rew).sum(-1).mean()))
-        paths.append(_cut(pos, alive, learn.paths))
+        paths.append(_cut(world.trace(obs), alive, learn.paths))
     scores = explicability_scores(
         rng.key(20_000 + learn.sac.seed), world, person, policy, learn.rollouts, agent_dist=shaped_dist
     )
@@ -248,16 +245,14 @@ def _person_record(world, person, learn: EPSLearners) -> dict:
     pos = world.trace(obs)
     in_truth, _, _ = evaluate(k_true, world.env, person.policy, world.params, 20, world.horizon)
     own = explicability(k_score, world, person.belief, person.policy, person.policy, learn.rollouts)
-    chk = check_world(world, n=learn.plan_resolution, count=100)
+    plan = wm.plan_record(world, learn.plan_resolution, 100)
     return {
         "done": f"π_H return in truth {float(np.mean(in_truth)):.1f}",
         "expected_paths": [np.round(p, 4).tolist() for p in _cut(pos, alive, learn.paths)],
         "obey_return": float(np.mean(in_truth)),
         "obey_stochastic_return": float(jnp.mean(own.returns)),
         "obey_explicability": float(own.score),
-        "optimal": chk.true._asdict(),
-        "expected": None if chk.expected is None else chk.expected._asdict(),
-        "plan_return": chk.reference_return,
+        **{k: plan[k] for k in ("optimal", "expected", "plan_return")},
     }
 
 
@@ -276,8 +271,8 @@ def required_route(world, route: dict, person_rec: dict | None) -> bool | None:
       detour the optimal agent does not take, though not necessarily the person's own;
     * None where the world names no ``eps_route`` (or no person record gives the optimal route).
     """
-    want = world.expect.get("eps_route")
-    if want is None:
+    want = wm.expect(world).get("eps_route")
+    if want is None or route["goal"] is None:
         return None
     if route["goal"] < 0.5:
         return False
@@ -303,8 +298,6 @@ def result_row(world, rec: dict, person_rec: dict | None) -> dict:
         v = np.asarray(rec[name], np.float64)
         return float(v.mean()), float(v.std())
 
-    routes = rec["routes"]
-    pit = [r["pit_mean"] for r in routes if r["pit_mean"] is not None]
     row = {"method": rec["method"], "world": rec["world"], **rec["tags"], "label": rec["label"], "seeds": rec["seeds"]}
     row["return_mean"], row["return_std"] = ms("return")
     row["explicability_mean"], row["explicability_std"] = ms("explicability")
@@ -313,10 +306,7 @@ def result_row(world, rec: dict, person_rec: dict | None) -> dict:
     row["policy_part_mean"], _ = ms("policy_part")
     row.update(
         required_route=route_share(world, rec, person_rec),
-        goal_rate=float(np.mean([r["goal"] for r in routes])),
-        ice_share=float(np.mean([r["ice"] for r in routes])),
-        sand_share=float(np.mean([r["sand"] for r in routes])),
-        pit_mean=float(np.mean(pit)) if pit else float("nan"),
+        **wm.route_means(rec["routes"]),
     )
     return row
 

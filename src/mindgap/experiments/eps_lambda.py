@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from .._io import atomic_write
-from ..envs.terrain import load_world
 from ..plotting.terrain import save_panels
 from . import eps_common as ec
 from . import prefbias_common as pc
+from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
 from .eps_table import PERSON_COLOUR
 
@@ -67,7 +67,7 @@ def jobs(cfg: LambdaConfig) -> list[pc.Job]:
 def run(cfg: LambdaConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return ec.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="lambda"
     )
 
 
@@ -75,7 +75,7 @@ def write_outputs(cfg: LambdaConfig, out: Path, records: dict) -> dict:
     people = ec.persons(records)
     rows, curves, claims, table, panels, series = [], [], [], [], [], {}
     for spec in cfg.worlds:
-        world = load_world(spec)
+        world = wm.experiment_world(spec, "lambda")
         person = people.get((spec, "biased"))
         recs = sorted(
             (r for r in records.values() if r["world"] == spec and r["method"] == "eps"), key=lambda r: r["tags"]["lam"]

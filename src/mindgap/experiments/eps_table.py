@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envs.terrain import load_world
 from ..plotting.learning import save_learning_curves
 from ..plotting.terrain import METHOD_COLOURS, save_fields, save_panels
 from . import eps_common as ec
 from . import prefbias_common as pc
+from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
 
 METHODS = ("eps", "sac", "drlhp", "shaping")
@@ -90,7 +90,7 @@ def jobs(cfg: EPSTableConfig) -> list[pc.Job]:
 def run(cfg: EPSTableConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return ec.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="eps"
     )
 
 
@@ -108,16 +108,17 @@ def _learned(records: dict, spec: str) -> dict[str, dict]:
 def write_outputs(cfg: EPSTableConfig, out: Path, records: dict) -> dict:
     people = ec.persons(records)
     rows, curves, person_rows, claims, t3, t4 = [], [], [], [], [], []
-    traj_panels = []
+    traj_panels, names = [], {}
     for spec in cfg.worlds:
-        world = load_world(spec)
+        world = wm.experiment_world(spec, "eps")
         person = people.get((spec, "biased"))
         learned = _learned(records, spec)
         mine = {n: ec.result_row(world, r, person) for n, r in learned.items()}
         rows += list(mine.values())
         curves += [c for r in learned.values() for c in pc.curve_rows(r)]
         if person is not None:
-            person_rows.append(_person_row(world, person, people.get((spec, "unbiased"))))
+            person_rows.append(_person_row(spec, person, people.get((spec, "unbiased"))))
+        names[spec] = world.name
         t3.append([world.name] + [_cell(mine.get(m), "return") for m in METHODS])
         t4.append([world.name] + [_cell(mine.get(m), "explicability") for m in METHODS])
         claims += _claims(world, mine)
@@ -145,7 +146,12 @@ def write_outputs(cfg: EPSTableConfig, out: Path, records: dict) -> dict:
             + pc.markdown(
                 ["world", "return", "explicability", "EPS (unbiased person) return", "SAC return"],
                 [
-                    [p["world"], pc.fmt(p["obey_return"]), pc.fmt(p["obey_explicability"]), *_unbiased_cells(p, rows)]
+                    [
+                        names[p["world"]],
+                        pc.fmt(p["obey_return"]),
+                        pc.fmt(p["obey_explicability"]),
+                        *_unbiased_cells(p, rows),
+                    ]
                     for p in person_rows
                 ],
             )
@@ -166,14 +172,15 @@ def _cell(row: dict | None, name: str) -> str:
     return "–" if row is None else pc.fmt(row[f"{name}_mean"], row[f"{name}_std"])
 
 
-def _person_row(world, person: dict, unbiased: dict | None) -> dict:
+def _person_row(spec: str, person: dict, unbiased: dict | None) -> dict:
+    """person.csv's row of a world (``spec``, as results.csv names it)."""
     row = {
-        "world": world.name,
+        "world": spec,
         "obey_return": person["obey_return"],
         "obey_stochastic_return": person["obey_stochastic_return"],
         "obey_explicability": person["obey_explicability"],
         "plan_return": person["plan_return"],
-        "optimal_pit_mean": person["optimal"]["pit_mean"],
+        "optimal_pit_mean": (person.get("optimal") or {}).get("pit_mean"),
         "expected_pit_mean": (person.get("expected") or {}).get("pit_mean"),
     }
     if unbiased is not None:
@@ -206,7 +213,7 @@ def _claims(world, mine: dict[str, dict]) -> list[dict]:
                     f"EPS {eps['explicability_mean']:.1f}, best other {best['label']} {best['explicability_mean']:.1f}",
                 )
             )
-        want = world.expect.get("eps_route")
+        want = wm.expect(world).get("eps_route")
         if want:
             out.append(
                 pc.claim(
@@ -221,7 +228,7 @@ def _claims(world, mine: dict[str, dict]) -> list[dict]:
     if unb is not None and sac is not None:
         out.append(_share_claim(world, "EPS (unbiased person)", unb, sac, UNBIASED_SHARE))
     shaping = mine.get("shaping")
-    if world.expect.get("eps_route") == "ice" and eps is not None and shaping is not None:
+    if wm.expect(world).get("eps_route") == "ice" and eps is not None and shaping is not None:
         gap = eps["return_mean"] - shaping["return_mean"]
         out.append(
             pc.claim(
@@ -280,7 +287,7 @@ def _unbiased_figure(out: Path, cfg: EPSTableConfig, records: dict) -> None:
     """Fig. 29: EPS's routes with an unbiased person in each world."""
     panels = []
     for spec in cfg.worlds:
-        world = load_world(spec)
+        world = wm.experiment_world(spec, "eps")
         r = _learned(records, spec).get("eps-unbiased")
         if r is not None:
             panels.append((f"{world.name}: EPS, unbiased person", world.params, {"EPS (unbiased)": _flat(r["paths"])}))

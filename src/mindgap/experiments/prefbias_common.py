@@ -10,7 +10,8 @@
   vmapped inside one call of the existing ``train``. A finished job is one JSON record;
   an unfinished one resumes from its engine checkpoint under ``train/``.
 * **Metrics**: the normalised score, the route each seed takes, the errors of the learned
-  belief and reward; **reports**: result rows, curve rows, markdown tables, bar charts.
+  belief and reward (:mod:`~.world_measures`: on any world, what its map allows);
+  **reports**: result rows, curve rows, markdown tables, bar charts.
 """
 
 from __future__ import annotations
@@ -22,26 +23,25 @@ import time
 from pathlib import Path
 from typing import NamedTuple
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
-from .. import rng
 from .._io import atomic_write
 from ..algorithms import pbrl
 from ..algorithms import prefbias as prefbias_alg
 from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
-from ..envs.terrain import load_world, observe
-from ..envs.terrain.dynamics import sample_next
-from ..envs.terrain.layout import GOAL, PIT, WALL
-from ..envs.terrain.params import TerrainState
-from ..envs.terrain.world import reward as true_reward
 from ..models.prefbias_nets import posterior_reward
 from ..models.reward_ensemble import RewardConfig, ensemble_reward
-from ..planning.terrain import compass_actions, rollouts, route_stats
-from ..planning.terrain_check import check_world
 from ..planning.terrain_maps import noise_maps, table_noise_map
 from ._runfolder import RunFolder
+from .world_measures import (
+    experiment_world,
+    has_map,
+    reference_record,
+    reward_error,
+    route_means,
+    route_of,
+    seed_route_share,
+)
 
 # ---------------------------------------------------------------------------------------
 # configurations
@@ -147,7 +147,7 @@ def pebble_job(world: str, learn: Learners, queries: int) -> Job:
 
 def compute_job(folder: RunFolder, job: Job, seeds: int, *, fresh: bool, progress: bool) -> dict:
     """The record of one job of these experiments: the reference or a learner's training."""
-    world = load_world(job.world)
+    world = experiment_world(job.world, "this experiment")
     if job.method == "reference":
         return _reference(world, job.cfg)
     return _learn(world, job, seeds, job_dir(folder, job), fresh=fresh, progress=progress)
@@ -190,30 +190,8 @@ def run_jobs(
     return records
 
 
-def _random_action(key, pos):
-    """A uniformly random action seeded by the position's bits.
-
-    Positions almost never repeat, so each step draws afresh; a robot stuck in sand stays
-    put and tries the same push again, as a random policy with memoryless draws would not.
-    """
-    bits = jax.lax.bitcast_convert_type(pos, jnp.int32)
-    return jax.random.uniform(jax.random.fold_in(key, bits[0] * 7919 + bits[1]), (2,), minval=-1.0, maxval=1.0)
-
-
 def _reference(world, cfg: ReferenceConfig) -> dict:
-    k_rand, k_pol = jax.random.split(rng.key(cfg.seed))
-    _, rew, _ = rollouts(k_rand, world.params, _random_action, cfg.random_episodes, k_pol)
-    ret = np.asarray(rew).sum(1)
-    chk = check_world(world, n=cfg.plan_resolution, count=cfg.plan_rollouts, seed=cfg.seed)
-    return {
-        "done": f"random {ret.mean():.1f}",
-        "random_return": float(ret.mean()),
-        "random_return_std": float(ret.std()),
-        "plan_return": chk.reference_return,
-        "optimal": chk.true._asdict(),
-        "expected": None if chk.expected is None else chk.expected._asdict(),
-        "belief": chk.belief,
-    }
+    return reference_record(world, cfg.random_episodes, cfg.seed, cfg.plan_resolution, cfg.plan_rollouts)
 
 
 def learned_noise(res: dict, world, cfg: PrefBiasLoopConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -243,7 +221,7 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
         "routes": [route_of(world, paths) for paths in res["paths"]],
         "reward_error": None if job.method == "sac" else reward_error(world, fn, params).tolist(),
     }
-    if job.method == "prefbias":
+    if job.method == "prefbias" and has_map(world):
         person = np.asarray(table_noise_map(world.belief()))
         belief, agent = learned_noise(res, world, job.cfg)
         rec["belief_error"] = noise_rms_error(belief, person).tolist()
@@ -291,139 +269,6 @@ def noise_rms_error(learned: np.ndarray, person: np.ndarray) -> np.ndarray:
     return np.sqrt(np.nanmean((np.asarray(learned) - person) ** 2, axis=(1, 2)))
 
 
-def route_of(world, paths: list) -> dict:
-    """The route one seed's greedy rollouts take: goal rate, terrain shares, pit distance, and
-    ``better`` — whether it is the truly better route of the world's ``[expect]`` entries.
-
-    * ``true_prefers = "ice"`` (nav1): most rollouts reach the goal with more steps on ice
-      than on sand — the icy corridor;
-    * ``wider_berth`` (nav2): most rollouts reach the goal and their mean distance to the pit
-      is nearer the planned optimal route's than the route the person expects (filled in by
-      :func:`better_route` from the reference job);
-    * otherwise ``None``.
-
-    Each rollout goes through :func:`~mindgap.planning.terrain.route_stats` on its own, padded
-    to the horizon (one array shape per world, whatever the number of rollouts), and the
-    results are pooled as ``route_stats`` pools rollouts: terrain shares over all steps taken,
-    goal rate and pit distance averaged over rollouts.
-    """
-    horizon = int(world.params.horizon)
-    per = []
-    for p in paths:
-        p = np.asarray(p, np.float32)[: horizon + 1]
-        pos = np.repeat(p[-1:], horizon + 1, 0)
-        pos[: len(p)] = p
-        alive = np.arange(horizon) < len(p) - 1
-        per.append(route_stats(world.params, pos[None], np.zeros((1, horizon), np.float32), alive[None]))
-    steps = np.array([st.steps for st in per])
-    weight = steps / max(steps.sum(), 1.0)
-    pit = float(np.mean([st.pit_mean for st in per]))
-    route = {
-        "goal": float(np.mean([st.success for st in per])),
-        "ice": float(weight @ [st.ice for st in per]),
-        "sand": float(weight @ [st.sand for st in per]),
-        "pit_mean": pit if pit < 1e5 else None,  # no pit in the world
-    }
-    want = world.expect.get("true_prefers")
-    if want in ("ice", "sand"):
-        other = "sand" if want == "ice" else "ice"
-        route["better"] = bool(route["goal"] >= 0.5 and route[want] > route[other])
-    else:
-        route["better"] = None
-    return route
-
-
-def better_route(route: dict, reference: dict | None) -> bool | None:
-    """``route["better"]``, or for worlds judged by pit distance, the comparison with the planned routes."""
-    if route["better"] is not None or reference is None or route["pit_mean"] is None:
-        return route["better"]
-    expected = reference.get("expected")
-    if expected is None:
-        return None
-    to_opt = abs(route["pit_mean"] - reference["optimal"]["pit_mean"])
-    to_exp = abs(route["pit_mean"] - expected["pit_mean"])
-    return bool(route["goal"] >= 0.5 and to_opt < to_exp)
-
-
-def _passable_grid(params, k: int = 3) -> np.ndarray:
-    """[N, 2] positions, k×k per cell that is neither wall nor goal nor pit (where episodes run)."""
-    grid = np.asarray(params.grid)
-    rows, cols = np.nonzero((grid != WALL) & (grid != GOAL) & (grid != PIT))
-    off = (np.arange(k) + 0.5) / k
-    ox, oy = np.meshgrid(off, off)
-    pts = np.stack([cols[:, None] + ox.ravel(), rows[:, None] + oy.ravel()], -1)
-    return pts.reshape(-1, 2).astype(np.float32)
-
-
-@jax.jit
-def _expected_true_reward(params, pos, act, key):
-    """E_{s' ~ T}[r(s, a, s')] per (position, action), by 32 draws of the true next position."""
-
-    def one(p, a, k):
-        s = TerrainState(p, jnp.zeros((), jnp.int32), jnp.zeros((), bool))
-
-        def draw(kk):
-            return true_reward(s, a, s._replace(pos=sample_next(kk, params, p, a)), params)
-
-        return jax.vmap(draw)(jax.random.split(k, 32)).mean()
-
-    keys = jax.random.split(key, pos.shape[0])
-    return jax.vmap(one)(pos, act, keys)
-
-
-def reward_grid(world, k: int = 3, seed: int = 0):
-    """The grid the reward error is measured on: observations, actions and the true expected reward.
-
-    States: k×k points in every cell that is neither wall, goal nor pit; actions: the 8 full
-    pushes of :func:`~mindgap.planning.terrain.compass_actions`; every pair of the two.
-    Returns ``(obs [N, 2], act [N, 2], r [N])``.
-    """
-    pts = _passable_grid(world.params, k)
-    acts = compass_actions(8)
-    pos = np.repeat(pts, len(acts), 0)
-    act = np.tile(acts, (len(pts), 1))
-    r = _expected_true_reward(world.params, jnp.asarray(pos), jnp.asarray(act), rng.key(seed))
-    state = TerrainState(jnp.asarray(pos), jnp.zeros(len(pos), jnp.int32), jnp.zeros(len(pos), bool))
-    return observe(state, world.params), jnp.asarray(act), np.asarray(r, np.float64)
-
-
-def _zscore(x: np.ndarray) -> np.ndarray:
-    sd = x.std(-1, keepdims=True)
-    return (x - x.mean(-1, keepdims=True)) / np.where(sd > 0, sd, 1.0)
-
-
-def reward_error(world, reward_fn, params) -> np.ndarray:
-    """Per seed, the L2 (RMS) error of the normalised learned reward against the true reward.
-
-    On the grid of :func:`reward_grid` (every passable, non-terminal state of a k×k lattice
-    per cell, times the 8 full pushes), both the learned ``r̂(s, a)`` (``reward_fn`` at the
-    seed's parameters; the posterior mean for PrefBias, the ensemble mean for PEBBLE) and
-    the true ``r̄(s, a) = E_{s'~T}[r(s, a, s')]`` (the world's reward under its true dynamics,
-    by Monte Carlo) are z-scored over the grid — ``z(x) = (x − mean x) / std x`` — and the
-    error is ``sqrt(mean_grid (z(r̂) − z(r̄))²)``. Preferences fix a reward only up to an
-    offset and a scale, which the z-score removes; the error equals ``sqrt(2 (1 − ρ))`` with ρ
-    the Pearson correlation over the grid: 0 for the true reward up to a positive affine
-    map, √2 ≈ 1.41 for an unrelated one, 2 for the reversed one.
-
-    Args:
-        params: the learned reward's parameters with a leading seed axis.
-
-    Returns:
-        [seeds] float.
-    """
-    obs, act, truth = reward_grid(world)
-    learned = np.asarray(jax.vmap(lambda p: reward_fn(p, obs, act, obs))(params), np.float64)
-    diff = _zscore(learned) - _zscore(truth)[None]
-    return np.sqrt((diff**2).mean(-1))
-
-
-def seed_route_share(rec: dict, reference: dict | None) -> float:
-    """Fraction of a learner's seeds that take the truly better route (NaN where it is not defined)."""
-    flags = [better_route(r, reference) for r in rec["routes"]]
-    flags = [f for f in flags if f is not None]
-    return float(np.mean(flags)) if flags else float("nan")
-
-
 def _pm(values) -> str:
     v = np.asarray(values, np.float64)
     return f"{v.mean():.1f} ± {v.std():.1f}"
@@ -444,14 +289,18 @@ def run_experiment(
     assemble_only: bool,
     compute=compute_job,
     references=("reference",),
+    name: str = "this experiment",
 ):
     """Run (or resume) ``jobs`` in the run folder ``out``, then ``write_outputs(cfg, out, records)``.
 
     ``assemble_only`` writes the outputs from the finished jobs and runs nothing; ``compute``
-    makes a job's record (:func:`run_jobs`); ``references`` are the methods that learn nothing.
+    makes a job's record (:func:`run_jobs`); ``references`` are the methods that learn nothing;
+    ``name`` is how a refused world is told (every world is checked before anything is written).
     Returns the summary, with ``missing_jobs``: how many jobs have no record yet.
     """
     out = Path(out)
+    for spec in dict.fromkeys(job.world for job in jobs):
+        experiment_world(spec, name)
     folder = RunFolder(out, cfg, fresh=fresh)
     records = run_jobs(
         folder, jobs, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only, compute=compute
@@ -461,16 +310,6 @@ def run_experiment(
     summary = write_outputs(cfg, out, records)
     summary["missing_jobs"] = len(jobs) - len(records)
     return summary
-
-
-ROUTES = {"true_prefers": "the {} corridor", "wider_berth": "the shortcut past the pit"}
-
-
-def route_name(world) -> str:
-    """What ``better_route`` means in this world (e.g. 'the ice corridor' on nav1)."""
-    if "true_prefers" in world.expect:
-        return ROUTES["true_prefers"].format(world.expect["true_prefers"])
-    return ROUTES["wider_berth"] if "wider_berth" in world.expect else "-"
 
 
 def result_row(rec: dict, reference: dict | None, oracle: dict | None) -> dict:
@@ -483,8 +322,6 @@ def result_row(rec: dict, reference: dict | None, oracle: dict | None) -> dict:
     rand = reference["random_return"] if reference else float("nan")
     orc = float(np.mean(oracle["final"])) if oracle else float("nan")
     norm = normalised(final, rand, orc) if reference and oracle else np.full_like(final, np.nan)
-    routes = rec["routes"]
-    pit = [r["pit_mean"] for r in routes if r["pit_mean"] is not None]
     row = {
         "method": rec["method"],
         "world": rec["world"],
@@ -496,16 +333,14 @@ def result_row(rec: dict, reference: dict | None, oracle: dict | None) -> dict:
         "normalised_mean": float(norm.mean()),
         "normalised_std": float(norm.std()),
         "better_route": seed_route_share(rec, reference),
-        "goal_rate": float(np.mean([r["goal"] for r in routes])),
-        "ice_share": float(np.mean([r["ice"] for r in routes])),
-        "sand_share": float(np.mean([r["sand"] for r in routes])),
-        "pit_mean": float(np.mean(pit)) if pit else float("nan"),
+        **route_means(rec["routes"]),
     }
     for name in ("reward_error", "belief_error", "dynamics_error"):
         if rec.get(name) is not None:
             v = np.asarray(rec[name], np.float64)
             row[f"{name}_mean"], row[f"{name}_std"] = float(v.mean()), float(v.std())
-    row.update(random_return=rand, oracle_return=orc, plan_return=reference["plan_return"] if reference else np.nan)
+    plan = reference.get("plan_return") if reference else None
+    row.update(random_return=rand, oracle_return=orc, plan_return=np.nan if plan is None else plan)
     return row
 
 

@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envs.terrain import load_world
 from ..plotting.learning import save_learning_curves
 from ..plotting.terrain import METHOD_COLOURS, save_panels
 from . import prefbias_common as pc
+from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
 
 
@@ -71,7 +71,7 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
 def run(cfg: NavConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return pc.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="nav"
     )
 
 
@@ -83,8 +83,8 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
     refs, oracles, learned = pc.split(records)
     rows, curves, claims, table, routes = [], [], [], [], []
     for spec in cfg.worlds:
-        world = load_world(spec)
-        routes.append(f"{world.name}: {pc.route_name(world)}")
+        world = wm.experiment_world(spec, "nav")
+        routes.append(f"{world.name}: {wm.route_name(world)}")
         recs = sorted([r for r in learned if r["world"] == spec] + [oracles[spec]] * (spec in oracles), key=_order)
         if not recs:
             continue
@@ -131,13 +131,16 @@ def _claims(world, rows: list[dict]) -> list[dict]:
             f"{world.name}: {top['label']} reaches ≥ 90% of the oracle",
             top["normalised_mean"] >= 0.9,
             f"normalised {top['normalised_mean']:.2f}",
-        ),
-        pc.claim(
-            f"{world.name}: {top['label']} takes {pc.route_name(world)} in most seeds",
-            top["better_route"] > 0.5,
-            f"{pc.share(top['better_route'])} of seeds",
-        ),
+        )
     ]
+    if wm.route_name(world) != "-":  # a world whose [expect] names the better route
+        out.append(
+            pc.claim(
+                f"{world.name}: {top['label']} takes {wm.route_name(world)} in most seeds",
+                top["better_route"] > 0.5,
+                f"{pc.share(top['better_route'])} of seeds",
+            )
+        )
     for r in peb:
         out.append(
             pc.claim(

@@ -30,11 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from ..algorithms.prefbias_inference import BELIEF_PRIORS
-from ..envs.terrain import load_world
 from ..planning.terrain_maps import table_noise_map
 from ..plotting.learning import save_learning_curves
 from ..plotting.terrain import save_fields
 from . import prefbias_common as pc
+from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
 
 
@@ -75,7 +75,7 @@ def jobs(cfg: PriorsConfig) -> list[pc.Job]:
 def run(cfg: PriorsConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return pc.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="priors"
     )
 
 
@@ -83,7 +83,7 @@ def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
     refs, oracles, learned = pc.split(records)
     rows, curves, claims, table = [], [], [], []
     for spec in cfg.worlds:
-        world = load_world(spec)
+        world = wm.experiment_world(spec, "priors")
         recs = [r for r in learned if r["world"] == spec]
         oracle = oracles.get(spec)
         if not recs:
@@ -96,8 +96,8 @@ def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
                 [
                     world.name,
                     r["prior"],
-                    pc.fmt(r["belief_error_mean"], r["belief_error_std"], 3),
-                    pc.fmt(r["dynamics_error_mean"], r["dynamics_error_std"], 3),
+                    pc.fmt(r.get("belief_error_mean"), r.get("belief_error_std"), 3),
+                    pc.fmt(r.get("dynamics_error_mean"), r.get("dynamics_error_std"), 3),
                     pc.fmt(r["reward_error_mean"], r["reward_error_std"], 2),
                     pc.fmt(r["return_mean"], r["return_std"]),
                     pc.fmt(r["normalised_mean"], r["normalised_std"], 2),
@@ -136,6 +136,7 @@ def _claims(world, rows: list[dict]) -> list[dict]:
             f"{world.name}: the dynamics prior gives the lower {what}", d[key] < r[key], f"{d[key]:.3f} vs {r[key]:.3f}"
         )
         for what, key in (("belief error", "belief_error_mean"), ("reward error", "reward_error_mean"))
+        if key in d and key in r  # belief errors need a map
     ] + [
         pc.claim(
             f"{world.name}: the dynamics prior's return is at least the random prior's",
@@ -150,7 +151,7 @@ def _figures(out: Path, world, recs: list[dict], oracle: dict | None, ref: dict 
     pc.save_bars(
         out / f"errors_{world.name}.png",
         [
-            ("belief error (noise RMS, cells)", {k: r["belief_error"] for k, r in label.items()}),
+            ("belief error (noise RMS, cells)", {k: r.get("belief_error") or [] for k, r in label.items()}),
             ("reward error (z-scored RMS)", {k: r["reward_error"] for k, r in label.items()}),
             ("final return (true reward)", {k: r["final"] for k, r in label.items()}),
         ],
@@ -165,6 +166,8 @@ def _figures(out: Path, world, recs: list[dict], oracle: dict | None, ref: dict 
         title=f"{world.name}: return under the true reward by belief prior (Fig. 24)",
         reference=ref["plan_return"] if ref else None,
     )
+    if not wm.has_map(world):  # belief maps need a map
+        return
     person = np.asarray(table_noise_map(world.belief()))
     fields = [
         ("the person's belief (table)", person),

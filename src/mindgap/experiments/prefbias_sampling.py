@@ -21,9 +21,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..algorithms.prefbias_queries import SAMPLERS
-from ..envs.terrain import load_world
 from ..plotting.learning import save_learning_curves
 from . import prefbias_common as pc
+from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
 
 
@@ -62,7 +62,7 @@ def jobs(cfg: SamplingConfig) -> list[pc.Job]:
 def run(cfg: SamplingConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return pc.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only
+        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="sampling"
     )
 
 
@@ -70,7 +70,7 @@ def write_outputs(cfg: SamplingConfig, out: Path, records: dict) -> dict:
     refs, oracles, learned = pc.split(records)
     rows, curves, table = [], [], []
     for spec in cfg.worlds:
-        world = load_world(spec)
+        world = wm.experiment_world(spec, "sampling")
         recs = [r for r in learned if r["world"] == spec]
         oracle, ref = oracles.get(spec), refs.get(spec)
         if not recs:
@@ -86,7 +86,7 @@ def write_outputs(cfg: SamplingConfig, out: Path, records: dict) -> dict:
                     pc.fmt(r["return_mean"], r["return_std"]),
                     pc.fmt(r["normalised_mean"], r["normalised_std"], 2),
                     pc.share(r["better_route"]),
-                    pc.fmt(r["belief_error_mean"], r["belief_error_std"], 3),
+                    pc.fmt(r.get("belief_error_mean"), r.get("belief_error_std"), 3),
                     pc.fmt(r["reward_error_mean"], r["reward_error_std"], 2),
                 ]
             )
@@ -103,7 +103,7 @@ def write_outputs(cfg: SamplingConfig, out: Path, records: dict) -> dict:
             out / f"final_{world.name}.png",
             [
                 ("final return (true reward)", {r["tags"]["sampler"]: r["final"] for r in recs}),
-                ("belief error (noise RMS, cells)", {r["tags"]["sampler"]: r["belief_error"] for r in recs}),
+                ("belief error (noise RMS, cells)", {r["tags"]["sampler"]: r.get("belief_error") or [] for r in recs}),
                 ("reward error (z-scored RMS)", {r["tags"]["sampler"]: r["reward_error"] for r in recs}),
             ],
             title=f"{world.name}: query samplers (§3.4.3.2)",

@@ -1,11 +1,13 @@
 """The terrain-world experiments on the command line: ``mindgap reproduce nav|priors|sampling|eps|lambda``.
 
-mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W] [--out DIR] [--fresh] [--quiet] [--assemble]
+mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR] [--fresh] [--quiet] [--assemble]
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, tiny networks: a dry run and the tests'
 preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 30 000
 steps, 80 queries a round; the EPS ones: 5 seeds, 60 000 steps, 800 queries). ``--worlds``
-runs a subset of the experiment's worlds (or world files). The run folder defaults to
+runs a subset of the experiment's worlds (or world files); ``--env SPEC`` (repeatable) runs
+it on any world with a belief and an exact density, a user's ``path.py:factory`` included
+(:mod:`~.world_measures` says what is measured on a world without a map). The run folder defaults to
 ``runs/NAME`` (``runs/NAME-fast``); rerunning resumes: finished jobs are read back, an
 interrupted one continues from its checkpoint.
 """
@@ -41,10 +43,15 @@ def reproduce(args) -> int:
         if args.seeds < 1:
             raise ValueError("--seeds must be at least 1")
         cfg = replace(cfg, seeds=args.seeds)
+    worlds = ()
     if getattr(args, "worlds", None):
         worlds = tuple(w.strip() for w in args.worlds.split(",") if w.strip())
         if not worlds:
             raise ValueError("--worlds needs at least one world")
+    worlds += tuple(e.strip() for e in getattr(args, "env", None) or ())
+    if worlds:
+        if any(not w for w in worlds):
+            raise ValueError("--env needs a world")
         cfg = replace(cfg, worlds=worlds)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     summary = module.run(

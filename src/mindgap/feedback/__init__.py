@@ -1,0 +1,1 @@
+"""Internal: demonstrations, ratings files and query selection for the learners."""

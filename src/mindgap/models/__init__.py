@@ -1,0 +1,1 @@
+"""Internal: the learners' models (beliefs, reward ensembles, dynamics, actors, PrefBias's networks)."""

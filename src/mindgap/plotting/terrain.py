@@ -70,16 +70,25 @@ def save_world(
 def save_panels(
     path: str | Path, panels: Sequence[tuple[str, object, Mapping]], colours=None, ncols: int | None = None
 ) -> Path:
-    """Several maps side by side: ``[(title, params, {label: paths}), …]``, ``ncols`` to a row (default: one row)."""
+    """Several maps side by side: ``[(title, params, {label: paths}), …]``, ``ncols`` to a row (default: one row).
+
+    ``params`` of a world without a map (no ``grid``: a user's world) gives plain axes, the
+    paths drawn in the first two coordinates of what the world traces.
+    """
     path = Path(path)
-    h, w = np.asarray(panels[0][1].grid).shape
+    mapped = hasattr(panels[0][1], "grid")
+    h, w = np.asarray(panels[0][1].grid).shape if mapped else (8, 8)
     ncols = min(ncols or len(panels), len(panels))
     nrows = -(-len(panels) // ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(ncols * (0.45 * w + 0.6), nrows * (0.45 * h + 0.8)), squeeze=False)
     for ax in axes.ravel()[len(panels) :]:
         ax.axis("off")
     for ax, (title, params, trajs) in zip(axes.ravel(), panels):
-        draw_world(ax, params)
+        if mapped:
+            draw_world(ax, params)
+        else:
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.grid(alpha=0.3)
         draw_trajectories(ax, trajs, colours)
         ax.set_title(title, fontsize=9)
     _save(fig, path)

@@ -1,0 +1,102 @@
+"""EPS's configuration and presets (Algorithm 3's knobs on the engine's schedule).
+
+The run itself is :mod:`~mindgap.algorithms.eps`; the reasons behind defaults the
+dissertation leaves open are in docs/eps.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..feedback.queries import SAMPLERS
+from ..models.gaussian_dynamics import DynamicsConfig
+from ..models.reward_ensemble import RewardConfig
+from .engine import FAST_SCHEDULE, Schedule
+from .eps_reward import eps_sac_config
+from .sac import SACConfig
+
+METHODS = ("eps", "drlhp")
+SURROGATES = ("learned", "exact")
+
+
+@dataclasses.dataclass(frozen=True)
+class EPSConfig(Schedule):
+    """One EPS (or expectation-DRLHP) run; all seeds share it (hashable, a static jit argument).
+
+    The schedule's fields (steps, chunks, evaluation, SAC, budget, teacher knobs) are
+    :class:`~mindgap.algorithms.engine.Schedule`'s; for EPS the SAC's α is replaced by
+    λ·reward_scale/nats_per_unit.
+    """
+
+    method: str = "eps"
+    """eps (Algorithm 3) or drlhp (u_H alone, the baseline of §4.4.1.1)."""
+    lam: float = 2.0
+    """λ, the reconciliation factor of Eq. 4.6 (the dissertation tunes it in [2.0, 2.8])."""
+    total_steps: int = 60_000
+    """Environment steps per seed."""
+    reward: RewardConfig = RewardConfig()
+    """The ensemble that learns u_H."""
+    dynamics: DynamicsConfig = DynamicsConfig()
+    """T_A, the agent's Gaussian dynamics model (H_T)."""
+    per_round: int = 80
+    """Queries per feedback round."""
+    sampler: str = "disagreement"
+    """uniform, disagreement or entropy (uncertainty sampling, §4.3.3)."""
+    candidates: int = 10
+    """Pairs drawn per query kept (score-based samplers)."""
+    nats_per_unit: float = 7.0
+    """s_H: the per-step spread, in nats, of the person's log T_H + log π_H that one unit of the
+    standardised u_H stands for; the policy entropy is weighted λ/s_H (α = λ·reward_scale/s_H) so
+    that u_H + H_π keeps the balance of the KL it comes from. One value for every world (docs/eps.md)."""
+    centre_entropy: bool = False
+    """Subtract H_T's mean over the buffer, as u_H is centred. Off by default, as Eq. 4.6 is
+    written (docs/eps.md)."""
+
+    surrogate: str = "learned"
+    """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:
+    u_H is the person's own per-step log T_H + log π_H (:class:`~.eps_reward.ExactSurrogate`),
+    standardised over the buffer the same way; no query is asked (the rounds still come on the
+    same schedule, refit T_A and relabel, and count their budget as shown). An oracle
+    ablation, not a method: it needs the person's models, which only a simulation has."""
+
+    def check(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
+        if self.surrogate not in SURROGATES:
+            raise ValueError(f"unknown surrogate {self.surrogate!r}: choose from {', '.join(SURROGATES)}")
+        if self.sampler not in SAMPLERS:
+            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        if self.lam < 0:
+            raise ValueError(f"λ must be non-negative, got {self.lam}")
+        if not self.nats_per_unit > 0:
+            raise ValueError(f"nats_per_unit must be positive, got {self.nats_per_unit}")
+        self.check_schedule()
+        if self.queries < 1 or self.per_round < 1:
+            raise ValueError("queries and per_round must be at least 1")
+
+    def as_dict(self) -> dict:
+        d = super().as_dict()
+        if self.surrogate == "learned":  # recorded only when set, so earlier run folders still resume
+            del d["surrogate"]
+        return d
+
+    def agent_sac(self) -> SACConfig:
+        """The SAC the agent runs: α fixed to λ·reward_scale/nats_per_unit for EPS, as configured for DRLHP."""
+        return eps_sac_config(self.sac, self.lam, self.nats_per_unit) if self.method == "eps" else self.sac
+
+
+_FAST = dict(
+    **FAST_SCHEDULE,
+    reward=RewardConfig(members=2, hidden=(8, 8), updates=10, batch_size=8),
+    dynamics=DynamicsConfig(hidden=(8, 8), max_epochs=3, steps_per_epoch=5, batch_size=32),
+)
+PRESETS = ("full", "fast")
+
+
+def eps_config(preset: str = "full", **overrides) -> EPSConfig:
+    """A preset with ``overrides`` applied, checked (``fast``: tiny networks, 1500 steps; for tests)."""
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}: choose from {', '.join(PRESETS)}")
+    cfg = EPSConfig(**{**(_FAST if preset == "fast" else {}), **overrides})
+    cfg.check()
+    return cfg
