@@ -135,7 +135,12 @@ def _claims(world, rows: list[dict], seeds: int) -> list[dict]:
             pc.claim(
                 f"{world.name}: the {name} {verb} with λ within seed noise",
                 held,
-                ", ".join(f"{m:.1f}" for m in means) + f" (worst reversal {worst:.1f} standard errors)",
+                ", ".join(f"{m:.1f}" for m in means)
+                + (
+                    f" (worst reversal {worst:.1f} standard errors)"
+                    if seeds > 1
+                    else " (one seed: no noise to judge by)"
+                ),
             )
         )
     return out
