@@ -15,3 +15,12 @@ def key():
     from mindgap import rng
 
     return rng.key(0)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop each test file's compiled programs when it ends: a worker runs half the suite, and
+    keeping every program in memory grew a worker past 7 GB (the persistent cache on disk still
+    serves a program another file compiles again)."""
+    yield
+    jax.clear_caches()

@@ -74,6 +74,31 @@ def test_horizon_truncates(world, key):
     assert bool(out.truncated) and bool(out.state.done) and not bool(out.terminated)
 
 
+FIXED = {**SPEC, "episode_ends": False, "rewards": {"form": "state", "goal": 1.0, "pit": -2.0, "step": -1.0}}
+
+
+def test_a_state_form_reward_depends_on_where_the_step_starts_only(key):
+    params = world_from_dict(FIXED).params
+    assert float(reward(_state(1.5, 1.5), jnp.zeros(2), _state(5.5, 1.5), params)) == -1.0  # into the goal: no bonus
+    assert float(reward(_state(5.5, 1.5), jnp.zeros(2), _state(4.5, 1.5), params)) == 0.0  # in the goal: −1 + 1
+    assert float(reward(_state(4.5, 1.5), jnp.zeros(2), _state(4.5, 1.5), params)) == -3.0  # in the pit: −1 − 2
+
+
+def test_a_fixed_horizon_ends_nowhere_but_the_horizon_and_a_pit_traps(key):
+    params = world_from_dict(FIXED).params
+    out = step(key, _state(5.5, 2.2), jnp.asarray([0.0, -1.0]), params)  # up into the goal: the episode goes on
+    assert not bool(out.terminated) and not bool(out.state.done) and int(out.state.pos[1]) == 1
+    inside = step(key, out.state, jnp.asarray([-0.2, 0.0]), params)
+    assert float(inside.reward) == 0.0 and not bool(inside.state.done)  # the goal is a region to stay in
+    pit = _state(4.5, 1.5)
+    for k in jax.random.split(key, 5):
+        out = step(k, pit, jnp.asarray([1.0, 1.0]), params)
+        assert np.array_equal(np.asarray(out.state.pos), np.asarray(pit.pos)) and not bool(out.terminated)
+    assert float(log_prob(pit, jnp.ones(2), pit, params)) == 0.0  # trapped: staying is certain
+    assert float(log_prob(pit, jnp.ones(2), _state(4.9, 1.5), params)) == -np.inf
+    assert bool(step(key, _state(1.5, 2.5, t=4), jnp.zeros(2), params).truncated)
+
+
 def test_progress_rewards_telescope_along_a_rollout(world, key):
     """Σ progress terms = Φ(start) − Φ(end), with Φ = 0 at a pit or the goal (potential-based shaping)."""
     params = world.params
@@ -154,6 +179,9 @@ def test_named_worlds_load(name):
         ({"rewards": {"gold": 1.0}}, r"\[rewards\]: unknown key\(s\) gold"),
         ({"expect": {"true_prefers": "lava"}}, r"must be 'ice' or 'sand'"),
         ({"horizon": 0}, r"horizon must be at least 1"),
+        ({"rewards": {"form": "episode"}}, r"\[rewards\] form must be one of transition, state"),
+        ({"rewards": {"form": "state", "progress": 1.0}}, r"a state-form reward cannot have it"),
+        ({"episode_ends": "no"}, r"episode_ends must be true or false"),
     ],
 )
 def test_malformed_world_files_get_clear_errors(patch, pattern):

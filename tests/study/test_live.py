@@ -151,9 +151,11 @@ def test_pebble_learns_from_people_answering_in_the_study_app(tmp_path):
 def test_the_host_path_gives_the_jitted_path_s_results(tmp_path):
     """With a deterministic simulated person, asking outside jit changes nothing."""
     world = world_from_dict(__import__("tomllib").loads(EASY))
-    cfg = method_config("pebble", **{**TINY, "teacher": TeacherConfig()})
+    cfg = method_config("pebble", **{**TINY, "teacher": TeacherConfig(beta=None)})
     jitted = train(world, cfg, seeds=2, teacher="true", progress=False)
-    host = SimulatedHostTeacher(world.env, world.params, None, TeacherConfig(use_belief=False), key=jax.random.key(0))
+    host = SimulatedHostTeacher(
+        world.env, world.params, None, TeacherConfig(beta=None, use_belief=False), key=jax.random.key(0)
+    )
     hosted = train(world, cfg, seeds=2, teacher=host, progress=False)
     assert host.calls == 2
     np.testing.assert_allclose(np.asarray(hosted["curve"]), np.asarray(jitted["curve"]), rtol=1e-5, atol=1e-5)

@@ -48,7 +48,7 @@ def test_biased_person_prefers_sand_the_plain_teacher_does_not_care(nav1):
     s_ice = segment_scores(ice, nav1.env, nav1.params, nav1.belief(), cfg)
     s_sand = segment_scores(sand, nav1.env, nav1.params, nav1.belief(), cfg)
     assert float(s_sand.mean()) > float(s_ice.mean()) + 2  # log T_H: real ice moves look unlikely to the person
-    plain = TeacherConfig(use_belief=False)
+    plain = TeacherConfig(use_belief=False, beta=None)  # deterministic: a tie is answered 0.5
     np.testing.assert_allclose(segment_scores(ice, nav1.env, nav1.params, None, plain), -6.0)  # r_H only: −1 per step
     labels, answered = answer(jax.random.key(0), ice, sand, nav1.env, nav1.params, None, plain)
     assert np.all(np.asarray(labels) == 0.5) and bool(answered.all())  # equal returns: a tie
@@ -67,13 +67,23 @@ def _pairs(nav1, n=400):
 
 def test_mistake_rate_flips_about_that_share(nav1):
     a, b = _pairs(nav1)
-    clean, _ = answer(jax.random.key(0), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False))
+    clean, _ = answer(jax.random.key(0), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, beta=None))
     assert np.all(np.asarray(clean) == 1.0)
     noisy, _ = answer(
-        jax.random.key(3), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, mistake=0.1)
+        jax.random.key(3), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False, beta=None, mistake=0.1)
     )
     flipped = float(np.mean(np.asarray(noisy) == 0.0))
     assert 0.07 < flipped < 0.13  # 400 answers: ±3 standard deviations around 0.1
+
+
+def test_the_default_person_answers_by_bradley_terry_with_a_finite_beta(nav1):
+    """Eq. 3.4 with β = 1 by default: a return gap of 2 is answered the right way about 88% of the time.
+
+    Hard (β = ∞) labels would leave the score's scale, hence the belief, unidentified."""
+    assert TeacherConfig().beta == 1.0
+    a, b = _pairs(nav1)
+    labels, _ = answer(jax.random.key(5), a, b, nav1.env, nav1.params, None, TeacherConfig(use_belief=False))
+    assert 0.82 < float(np.mean(np.asarray(labels))) < 0.94  # σ(2) ≈ 0.88; 400 answers
 
 
 def test_rationality_equal_skip_and_myopia(nav1):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 
 from ..feedback.queries import SAMPLERS
-from .learn import add_env_flag, add_run_flags
+from .learn import add_env_flag, add_person_flags, add_run_flags
 
 
 def add_parser(sub) -> None:
@@ -28,8 +28,7 @@ def add_parser(sub) -> None:
     p.add_argument("--queries", type=int, help="query budget (default 800)")
     p.add_argument("--per-round", type=int, help="queries per feedback round (default 80)")
     p.add_argument("--sampler", default="disagreement", help=f"{', '.join(SAMPLERS)} (default disagreement)")
-    p.add_argument("--beta", type=float, help="person's rationality (default: deterministic answers)")
-    p.add_argument("--mistake", type=float, default=0.0, help="person's probability of a flipped answer")
+    add_person_flags(p)
     p.add_argument(
         "--nats-per-unit",
         type=float,

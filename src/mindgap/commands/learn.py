@@ -15,6 +15,7 @@ from pathlib import Path
 from ..algorithms.engine import Schedule
 from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS
 from ..algorithms.sac import SACConfig
+from ..teachers.preference import TeacherConfig
 
 
 def add_parsers(sub) -> None:
@@ -45,8 +46,7 @@ def add_parsers(sub) -> None:
             p.add_argument("--queries", type=int, help="query budget (default 800)")
             p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
             p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
-            p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
-            p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
+            add_person_flags(p)
             p.add_argument(
                 "--absorbing",
                 action=argparse.BooleanOptionalAction,
@@ -78,6 +78,32 @@ ENV_HELP = (
 def add_env_flag(p) -> None:
     """``--env`` (``--world`` is the same flag): see :mod:`~mindgap.envs.resolve`."""
     p.add_argument("--env", "--world", dest="env", required=True, metavar="ENV", help=ENV_HELP)
+
+
+def beta_value(text: str) -> float | None:
+    """``--beta``: a positive rationality, or ``inf`` for deterministic answers (B-Pref's oracle)."""
+    if text.strip().lower() in ("inf", "infinity", "deterministic"):
+        return None
+    try:
+        beta = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number or inf, got {text!r}") from None
+    if not beta > 0:
+        raise argparse.ArgumentTypeError(f"beta must be positive (or inf), got {text!r}")
+    return beta
+
+
+def add_person_flags(p) -> None:
+    """How the simulated person answers: Bradley–Terry rationality β (Eq. 3.4) and B-Pref's mistakes."""
+    beta = TeacherConfig().beta
+    p.add_argument(
+        "--beta",
+        type=beta_value,
+        default=beta,
+        help=f"the person's Bradley–Terry rationality (default {beta}; inf: deterministic answers, "
+        "under which the scale of the score, hence the belief, is not identified)",
+    )
+    p.add_argument("--mistake", type=float, default=0.0, help="the person's probability of a flipped answer")
 
 
 def add_run_flags(p, steps: int = 40_000) -> None:
@@ -169,8 +195,6 @@ def run(args: argparse.Namespace) -> int:
     over = dict(total_steps=args.steps, seed=args.seed, sac=sac_config(args))
     teacher = "true"
     if args.command != "sac":
-        from ..teachers.preference import TeacherConfig
-
         over.update(
             queries=base.queries if args.queries is None else args.queries,
             per_round=base.per_round if args.per_round is None else args.per_round,

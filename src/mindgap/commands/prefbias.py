@@ -14,7 +14,7 @@ import argparse
 from ..algorithms.prefbias import PrefBiasLoopConfig
 from ..algorithms.prefbias_inference import PrefBiasConfig
 from ..algorithms.prefbias_queries import SAMPLERS
-from .learn import add_env_flag, add_run_flags
+from .learn import add_env_flag, add_person_flags, add_run_flags
 
 
 def _on(flag: bool) -> str:
@@ -55,8 +55,7 @@ def add_parser(sub) -> None:
         help="f_ψ and f_φ also predict the probability of not moving at all (stuck or bumped), a point mass "
         f"instead of a far tail of the Gaussian (default: {_on(PrefBiasConfig.stay_head)})",
     )
-    p.add_argument("--beta", type=float, help="teacher rationality (default: deterministic answers)")
-    p.add_argument("--mistake", type=float, default=0.0, help="teacher's probability of a flipped answer")
+    add_person_flags(p)
     p.add_argument(
         "--fast", action="store_true", help="the quick preset (tiny networks, 1500 steps, 30 queries; for dry runs)"
     )

@@ -82,7 +82,7 @@ def _build(params, positions, padded, actions, n):
     targets = jax.vmap(block_targets)(positions)
     probs = jax.vmap(jax.vmap(one, (None, 0)), (0, None))(positions, actions)
     terr = jax.vmap(lambda p: terrain_at(params, p))(positions)
-    terminal = (terr == GOAL) | (terr == PIT)
+    terminal = ((terr == GOAL) | (terr == PIT)) & (params.fixed_horizon < 0.5)  # a fixed horizon ends nowhere
 
     def landing_rewards(pos, tgt):
         land = jnp.where(tgt[:, None] >= 0, positions[jnp.maximum(tgt, 0)], pos)

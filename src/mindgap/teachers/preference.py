@@ -31,8 +31,11 @@ from ..envs.interface import Env
 class TeacherConfig:
     """How the simulated person answers (hashable: it is a static argument of jitted code)."""
 
-    beta: float | None = None
-    """Rationality of Bradley–Terry; None answers deterministically (B-Pref's oracle)."""
+    beta: float | None = 1.0
+    """Rationality of Bradley–Terry (Eq. 3.4: P(σ₁ ≻ σ₂) = sigmoid(β (S₁ − S₂))). None answers
+    deterministically (B-Pref's oracle), under which the scale of the score is not identified:
+    a learner can match hard labels with any score scaled up, so the belief's level is lost
+    (docs/identifiability.md)."""
     gamma: float = 1.0
     """Myopic discount: step t of L counts γ^(L−1−t)."""
     mistake: float = 0.0

@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 from jax.scipy.special import log_ndtr, logsumexp, ndtr
 
-from .layout import WALL
+from .layout import PIT, WALL
 from .params import TerrainParams
 
 OFFSETS = jnp.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], jnp.int32)  # [9, 2] (row, col)
@@ -231,7 +231,14 @@ def log_prob_pos(params: TerrainParams, pos: jax.Array, action: jax.Array, next_
     log_z = jax.lax.cond(slide, lambda: log_allowed_mass(params, pos, mean, sigma), lambda: jnp.zeros((), mean.dtype))
     log_density = log_density - log_z
     moved = jnp.where(landing_allowed(params, pos, next_pos), log_density, -jnp.inf)
-    return jnp.where(jnp.all(next_pos == pos), log_stay, moved)
+    log_p = jnp.where(jnp.all(next_pos == pos), log_stay, moved)
+    stays = jnp.where(jnp.all(next_pos == pos), 0.0, -jnp.inf)
+    return jnp.where(trapped(params, pos), stays, log_p)
+
+
+def trapped(params: TerrainParams, pos: jax.Array) -> jax.Array:
+    """Whether ``pos`` is in a pit of a fixed-horizon world (``params.fixed_horizon``): it cannot move."""
+    return (params.fixed_horizon > 0.5) & (terrain_at(params, pos) == PIT)
 
 
 def subcell_probs(params: TerrainParams, pos: jax.Array, action: jax.Array, n: int):
@@ -258,4 +265,5 @@ def subcell_probs(params: TerrainParams, pos: jax.Array, action: jax.Array, n: i
     log_sub = jnp.where(allowed, log_py[:, None] + log_px[None, :], -jnp.inf)
     slid = jnp.exp(log_sub - logsumexp(log_sub))
     probs = (1 - stuck) * jnp.where(_slides(params), slid, bump)
+    probs = jnp.where(trapped(params, pos), 0.0, probs)
     return jnp.clip(1.0 - probs.sum(), 0.0, 1.0), probs

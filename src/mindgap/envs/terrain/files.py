@@ -5,6 +5,8 @@ A world file::
     name = "corridors"
     description = "what it tests"
     horizon = 100                 # steps per episode
+    episode_ends = true           # optional: false for a fixed horizon (the goal a region to stay
+                                  # in, a pit a trap until the horizon; equal-length episodes)
     start_jitter = 0.2            # optional, cells
     layout = '''
     #######
@@ -13,6 +15,7 @@ A world file::
     '''
 
     [rewards]                     # r = step + progress·(Φ(s) − Φ(s')) + goal/pit on entry
+    form = "transition"           # or "state": r(s) = step + goal·[s in goal] + pit·[s in pit]
     goal = 10.0
     pit = -10.0
     step = -1.0
@@ -49,8 +52,20 @@ from .layout import LayoutError, parse_layout
 from .params import Dynamics, Rewards, make_params
 from .world import TerrainWorld
 
-NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4")
-_KEYS = {"name", "description", "horizon", "start_jitter", "layout", "rewards", "dynamics", "beliefs", "expect"}
+NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4", "nav1-v1", "nav2-v1")
+_KEYS = {
+    "name",
+    "description",
+    "horizon",
+    "episode_ends",
+    "start_jitter",
+    "layout",
+    "rewards",
+    "dynamics",
+    "beliefs",
+    "expect",
+}
+REWARD_FORMS = ("transition", "state")
 EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth", "eps_route", "person_prefers"}
 EPS_ROUTES = ("ice", "sand", "detour")
 
@@ -68,21 +83,35 @@ def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
         layout = parse_layout(spec["layout"])
     except LayoutError as e:
         raise LayoutError(f"{where}layout: {e}") from None
-    rw = spec.get("rewards", {})
-    bad = set(rw) - set(Rewards._fields)
+    rw = dict(spec.get("rewards", {}))
+    form = rw.pop("form", "transition")
+    bad = set(rw) - (set(Rewards._fields) - {"state_form"})
     if bad:
         raise ValueError(f"{where}[rewards]: unknown key(s) {', '.join(sorted(bad))}")
+    if form not in REWARD_FORMS:
+        raise ValueError(f"{where}[rewards] form must be one of {', '.join(REWARD_FORMS)}, got {form!r}")
+    if form == "state" and float(rw.get("progress", 0.0)) != 0.0:
+        raise ValueError(f"{where}[rewards] progress depends on the next state; a state-form reward cannot have it")
+    ends = spec.get("episode_ends", True)
+    if not isinstance(ends, bool):
+        raise ValueError(f"{where}episode_ends must be true or false, got {ends!r}")
     rewards = Rewards(
         goal=float(rw.get("goal", 0.0)),
         pit=float(rw.get("pit", 0.0)),
         step=float(rw.get("step", 0.0)),
         progress=float(rw.get("progress", 0.0)),
+        state_form=float(form == "state"),
     )
     try:
         true = Dynamics.from_dict(spec.get("dynamics", {}))
         beliefs = {name: Dynamics.from_dict(table, base=true) for name, table in spec.get("beliefs", {}).items()}
         params = make_params(
-            layout, true, rewards, horizon=int(spec["horizon"]), start_jitter=float(spec.get("start_jitter", 0.2))
+            layout,
+            true,
+            rewards,
+            horizon=int(spec["horizon"]),
+            start_jitter=float(spec.get("start_jitter", 0.2)),
+            fixed_horizon=not ends,
         )
     except ValueError as e:
         raise ValueError(f"{where}{e}") from None

@@ -106,17 +106,23 @@ class Dynamics(NamedTuple):
 
 
 class Rewards(NamedTuple):
-    """r(s, a, s') = step + progress · (Φ(s) − Φ(s')) + goal·[enter goal] + pit·[enter pit].
+    """The task's reward, in one of two forms.
 
-    Φ is the geodesic distance to the goal (cells), so ``progress`` rewards how far a step
-    brings the agent toward the goal (ch. 4 worlds). Φ is 0 in the goal and in pits, which
-    makes the term potential-based shaping: it never changes which episodes are better.
+    * transition form (``state_form`` = 0, the dissertation's worlds):
+      r(s, a, s') = step + progress · (Φ(s) − Φ(s')) + goal·[enter goal] + pit·[enter pit].
+      Φ is the geodesic distance to the goal (cells), so ``progress`` rewards how far a step
+      brings the agent toward the goal (ch. 4 worlds). Φ is 0 in the goal and in pits, which
+      makes the term potential-based shaping: it never changes which episodes are better.
+    * state form (``state_form`` = 1): r(s) = step + goal·[s in the goal] + pit·[s in a pit], a
+      function of where the step starts only. A learner's r_w(s, a) can represent it, so a
+      person's preferences separate it from their belief (docs/identifiability.md).
     """
 
     goal: jax.Array
     pit: jax.Array
     step: jax.Array
     progress: jax.Array
+    state_form: jax.Array = np.float32(0.0)
 
 
 class TerrainParams(NamedTuple):
@@ -131,6 +137,8 @@ class TerrainParams(NamedTuple):
         rewards: the reward specification.
         horizon: episode length (steps).
         start_jitter: a start position is the centre of a start cell ± this much per axis.
+        fixed_horizon: 0 if entering the goal or a pit ends the episode; 1 for a fixed horizon,
+            where the goal is a region the agent may stay in and a pit traps it until the horizon.
     """
 
     grid: jax.Array
@@ -141,6 +149,7 @@ class TerrainParams(NamedTuple):
     rewards: Rewards
     horizon: jax.Array
     start_jitter: jax.Array
+    fixed_horizon: jax.Array = np.float32(0.0)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -164,7 +173,12 @@ def as_arrays(dyn: Dynamics) -> Dynamics:
 
 
 def make_params(
-    layout: Layout, dynamics: Dynamics, rewards: Rewards, horizon: int, start_jitter: float = 0.2
+    layout: Layout,
+    dynamics: Dynamics,
+    rewards: Rewards,
+    horizon: int,
+    start_jitter: float = 0.2,
+    fixed_horizon: bool = False,
 ) -> TerrainParams:
     """Assemble the arrays of a world from its parsed layout (host side, once)."""
     dynamics.check()
@@ -185,4 +199,5 @@ def make_params(
         rewards=Rewards(*(jnp.asarray(float(x), jnp.float32) for x in rewards)),
         horizon=jnp.asarray(horizon, jnp.int32),
         start_jitter=jnp.asarray(start_jitter, jnp.float32),
+        fixed_horizon=jnp.asarray(float(fixed_horizon), jnp.float32),
     )

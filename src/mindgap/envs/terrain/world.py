@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 
 from ..interface import Box, Env, Step, pick_belief
-from .dynamics import OFFSETS, cell_of, is_wall, log_prob_pos, sample_next, terrain_at
+from .dynamics import OFFSETS, cell_of, is_wall, log_prob_pos, sample_next, terrain_at, trapped
 from .layout import GOAL, PIT, Layout
 from .params import Dynamics, TerrainParams, TerrainState
 
@@ -52,9 +52,11 @@ def potential(params: TerrainParams, pos: jax.Array) -> jax.Array:
 
 
 def reward(state: TerrainState, action: jax.Array, next_state: TerrainState, params: TerrainParams) -> jax.Array:
-    """r(s, a, s') of :class:`~mindgap.envs.terrain.params.Rewards`; 0 once the episode is over."""
+    """r(s, a, s') of :class:`~mindgap.envs.terrain.params.Rewards` (either form); 0 once the episode is over."""
     del action  # the reward of these worlds depends on where the agent goes, not how hard it pushes
     rw = params.rewards
+    here = terrain_at(params, state.pos)
+    r_state = rw.step + jnp.where(here == GOAL, rw.goal, 0.0) + jnp.where(here == PIT, rw.pit, 0.0)
     terr = terrain_at(params, next_state.pos)
     # Φ = 0 in every terminal cell: over a whole episode the progress terms then add up to
     # Φ(start) whichever way it ends, so they shape learning without changing which
@@ -66,14 +68,18 @@ def reward(state: TerrainState, action: jax.Array, next_state: TerrainState, par
         + jnp.where(terr == GOAL, rw.goal, 0.0)
         + jnp.where(terr == PIT, rw.pit, 0.0)
     )
-    return jnp.where(state.done, 0.0, r)
+    return jnp.where(state.done, 0.0, jnp.where(rw.state_form > 0.5, r_state, r))
 
 
 def step(key: jax.Array, state: TerrainState, action: jax.Array, params: TerrainParams) -> Step:
-    """One transition: sample the next position, score it, end the episode on pit, goal or horizon."""
-    pos = jnp.where(state.done, state.pos, sample_next(key, params, state.pos, action))
+    """One transition: sample the next position, score it, end the episode on pit, goal or horizon.
+
+    With a fixed horizon (``params.fixed_horizon``) only the horizon ends it; a pit traps the
+    agent, which stays put until then.
+    """
+    pos = jnp.where(state.done | trapped(params, state.pos), state.pos, sample_next(key, params, state.pos, action))
     terr = terrain_at(params, pos)
-    terminated = ~state.done & ((terr == GOAL) | (terr == PIT))
+    terminated = ~state.done & (params.fixed_horizon < 0.5) & ((terr == GOAL) | (terr == PIT))
     t = state.t + jnp.where(state.done, 0, 1)
     truncated = ~state.done & ~terminated & (t >= params.horizon)
     nxt = TerrainState(pos=pos, t=t, done=state.done | terminated | truncated)
