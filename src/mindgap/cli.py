@@ -7,6 +7,7 @@ mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
 mindgap reproduce nav|priors|sampling|eps|lambda [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
+mindgap design check WORLD …               (can a world show PrefBias's effect? see mindgap.commands.design)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
 mindgap prefbias --world W --out DIR …   (PrefBias, Algorithm 2; see mindgap.commands.prefbias)
 mindgap eps --world W --lam L --out DIR …   (EPS, Algorithm 3; see mindgap.commands.eps)
@@ -49,9 +50,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
-    from .commands import eps, learn, prefbias, study, worlds
+    from .commands import design, eps, learn, prefbias, study, worlds
 
     worlds.add_parser(sub)
+    design.add_parser(sub)
     learn.add_parsers(sub)
     prefbias.add_parser(sub)
     eps.add_parser(sub)
@@ -120,6 +122,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import study
 
             return study.run(args)
+        if args.command == "design":
+            from .commands import design
+
+            return design.run(args)
         if args.command in ("sac", "pebble", "drlhp"):
             from .commands import learn
 

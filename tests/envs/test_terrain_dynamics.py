@@ -176,17 +176,20 @@ def test_bump_worlds_keep_the_fingerprint_they_had_before_the_slide_rule():
     from mindgap.data.fingerprint import fingerprint, identity_leaves
     from mindgap.envs.terrain import load_world
 
-    world = load_world("nav2")
+    world = load_world("nav2-v1")  # the dissertation's nav2, as run folders recorded it
     tree = (world.params, world.beliefs)
     leaves = jax.tree.leaves(tree)
     kept = identity_leaves(tree)
-    assert len(leaves) - len(kept) == 2  # the true table's flag and the belief's
+    assert len(leaves) - len(kept) == 4  # both tables' slide flags, the reward form, the fixed horizon
     assert all(any(k is leaf for leaf in leaves) for k in kept)
     assert fingerprint(tree) == "e48df9479d0359a1"  # recorded by nav2 run folders before `walls` existed
 
     slide = world.params.with_dynamics(world.params.dynamics._replace(slide=np.float64(1.0)))
-    assert len(identity_leaves(slide)) == len(jax.tree.leaves(slide))
+    assert len(identity_leaves(slide)) == len(jax.tree.leaves(slide)) - 2  # the two other late fields hold 0
     assert fingerprint(slide) != fingerprint(world.params)
+    fixed = world.params._replace(fixed_horizon=np.float32(1.0))
+    state_form = world.params._replace(rewards=world.params.rewards._replace(state_form=np.float32(1.0)))
+    assert len({fingerprint(world.params), fingerprint(fixed), fingerprint(state_form)}) == 3
     cfg = ExpectedPolicyConfig.fast()
     assert cache_key(slide, cfg) != cache_key(world.params, cfg)
 

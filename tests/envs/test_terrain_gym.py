@@ -33,14 +33,14 @@ def test_an_episode_ends_in_the_goal_when_driven_there():
 
 
 def test_seeded_resets_repeat_and_render():
-    env = TerrainEnv("nav1", render_mode="rgb_array")
+    env = TerrainEnv("nav1-v1", render_mode="rgb_array")
     a, _ = env.reset(seed=7)
     b, _ = env.reset(seed=7)
     np.testing.assert_array_equal(a, b)
     frame = env.render()
     assert frame.dtype == np.uint8 and frame.shape == (7 * 16, 14 * 16, 3)
     with pytest.raises(ValueError, match="render_mode"):
-        TerrainEnv("nav1", render_mode="human")
+        TerrainEnv("nav1-v1", render_mode="human")
 
 
 def test_step_before_reset_is_an_error():

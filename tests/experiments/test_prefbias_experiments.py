@@ -63,7 +63,7 @@ def _fake_result(world, cfg, seeds, method):
     steps = range(cfg.eval_every, cfg.total_steps + 1, cfg.eval_every)
     curve = [(s, t, FINAL[method] * t / cfg.total_steps + s, cfg.queries) for t in steps for s in range(seeds)]
     keys = jax.random.split(rng.key(1), seeds)
-    good, bad = (ICE_ROUTE, SAND_ROUTE) if world.name == "nav1" else (NEAR_ROUTE, FAR_ROUTE)
+    good, bad = (ICE_ROUTE, SAND_ROUTE) if world.name == "nav1-v1" else (NEAR_ROUTE, FAR_ROUTE)
     path = bad if method == "pebble" else good
     res = {
         "curve": curve,
@@ -121,27 +121,31 @@ def stand_ins(monkeypatch):
     return calls
 
 
-def _run_twice(name, out, calls, capsys, n_jobs):
+def _run_twice(name, out, calls, capsys, n_jobs, extra=()):
     """Run the fast preset, then again: the rerun computes nothing and prints the same table."""
-    assert main(["reproduce", name, "--fast", "--quiet", "--out", str(out)]) == 0
+    assert main(["reproduce", name, "--fast", "--quiet", *extra, "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert len(calls) == n_jobs and len(list((out / "jobs").glob("*.json"))) == n_jobs
     stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
-    assert main(["reproduce", name, "--fast", "--quiet", "--out", str(out)]) == 0
+    assert main(["reproduce", name, "--fast", "--quiet", *extra, "--out", str(out)]) == 0
     assert len(calls) == n_jobs  # nothing recomputed
     assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
     assert capsys.readouterr().out == printed
     return printed
 
 
+V1 = ("--worlds", "nav1-v1,nav2-v1")  # the stand-in routes are drawn on the dissertation's maps
+
+
 def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path, capsys):
     out = tmp_path / "nav"
-    printed = _run_twice("nav", out, stand_ins, capsys, n_jobs=8)  # 2 worlds × reference, SAC, PEBBLE, PrefBias
-    assert "| nav1 | PrefBias (30 queries) |" in printed and "| nav2 | PEBBLE (30 queries) |" in printed
+    # 2 worlds × reference, SAC, PEBBLE, PrefBias
+    printed = _run_twice("nav", out, stand_ins, capsys, n_jobs=8, extra=V1)
+    assert "| nav1-v1 | PrefBias (30 queries) |" in printed and "| nav2-v1 | PEBBLE (30 queries) |" in printed
     results = rows(out / "results.csv")
     assert list(results[0])[:6] == ["method", "world", "queries", "seeds", "return_mean", "return_std"]
     assert sorted((r["world"], r["method"]) for r in results) == [
-        (w, m) for w in ("nav1", "nav2") for m in ("pebble", "prefbias", "sac")
+        (w, m) for w in ("nav1-v1", "nav2-v1") for m in ("pebble", "prefbias", "sac")
     ]
     for r in results:
         assert float(r["return_mean"]) == FINAL[r["method"]]
@@ -150,8 +154,8 @@ def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path,
         if r["method"] != "sac":
             assert 0 <= float(r["reward_error_mean"]) <= 2
     by = {(r["world"], r["method"]): r for r in results}
-    assert float(by["nav1", "prefbias"]["better_route"]) == 1.0  # the icy corridor
-    assert float(by["nav1", "pebble"]["better_route"]) == 0.0  # the sandy one
+    assert float(by["nav1-v1", "prefbias"]["better_route"]) == 1.0  # the icy corridor
+    assert float(by["nav1-v1", "pebble"]["better_route"]) == 0.0  # the sandy one
     curves = rows(out / "curves.csv")
     assert list(curves[0])[:6] == ["method", "world", "queries", "seed", "step", "return"]
     assert len(curves) == 2 * 3 * 3  # worlds × learners × evaluations (1 seed)
@@ -159,14 +163,20 @@ def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path,
     summary = json.loads((out / "summary.json").read_text())
     assert summary["experiment"] == "nav" and summary["config"]["seeds"] == 1
     claims = {c["text"]: c["held"] for c in summary["claims"]}
-    assert claims["nav1: PrefBias (30 queries) takes the ice corridor in most seeds"]
-    assert claims["nav1: PEBBLE (30 queries) stays below PrefBias (30 queries)"]
-    for name in ("curves_nav1.png", "curves_nav2.png", "trajectories_nav1.png", "trajectories_nav2.png", "table.md"):
+    assert claims["nav1-v1: PrefBias (30 queries) takes the ice corridor in most seeds"]
+    assert claims["nav1-v1: PEBBLE (30 queries) stays below PrefBias (30 queries)"]
+    for name in (
+        "curves_nav1-v1.png",
+        "curves_nav2-v1.png",
+        "trajectories_nav1-v1.png",
+        "trajectories_nav2-v1.png",
+        "table.md",
+    ):
         assert (out / name).stat().st_size > 0, name
     # another configuration in the same folder is refused; --fresh recomputes everything
-    assert main(["reproduce", "nav", "--fast", "--quiet", "--seeds", "2", "--out", str(out)]) == 2
+    assert main(["reproduce", "nav", "--fast", "--quiet", *V1, "--seeds", "2", "--out", str(out)]) == 2
     assert "another configuration" in capsys.readouterr().err
-    assert main(["reproduce", "nav", "--fast", "--quiet", "--seeds", "2", "--fresh", "--out", str(out)]) == 0
+    assert main(["reproduce", "nav", "--fast", "--quiet", *V1, "--seeds", "2", "--fresh", "--out", str(out)]) == 0
     assert len(stand_ins) == 16
     assert len(rows(out / "curves.csv")) == 2 * 3 * 3 * 2
     assert main(["reproduce", "nav", "--fast", "--shard", "0/2", "--out", str(out)]) == 2
@@ -251,7 +261,7 @@ def test_sampling_fast_compares_the_four_samplers(stand_ins, tmp_path, capsys):
 
 
 def test_metrics_on_hand_made_inputs():
-    nav1, nav2 = load_world("nav1"), load_world("nav2")
+    nav1, nav2 = load_world("nav1-v1"), load_world("nav2-v1")
     # routes: the icy corridor is nav1's better route, the sandy one is not; half-way is not arriving
     assert wm.route_of(nav1, [ICE_ROUTE] * 3)["better"] is True
     sand = wm.route_of(nav1, [SAND_ROUTE] * 3)

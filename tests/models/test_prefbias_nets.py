@@ -46,7 +46,7 @@ def test_posterior_reward_relabels_a_replay_buffer(key):
 
 def test_belief_noise_map_reads_cells_and_marks_walls(key):
     """A belief whose scale head is constant predicts the same noise everywhere, converted to cells."""
-    world = load_world("nav1")
+    world = load_world("nav1-v1")
     params = init_mlp(key, dynamics_sizes(2, 2, (8,)))
     w, b = params[-1]
     const = params[:-1] + ((w * 0, jnp.array([0.0, 0.0, 0.5, -0.5])),)
@@ -66,7 +66,7 @@ def test_belief_noise_map_reads_cells_and_marks_walls(key):
 
 
 def test_table_noise_map_reads_the_belief_table():
-    nav1 = load_world("nav1")
+    nav1 = load_world("nav1-v1")
     belief = nav1.beliefs["human"]
     noise = np.asarray(table_noise_map(nav1.belief("human")))
     grid = np.asarray(nav1.params.grid)
@@ -74,7 +74,7 @@ def test_table_noise_map_reads_the_belief_table():
         np.testing.assert_allclose(noise[grid == code], float(belief.noise[code]), rtol=1e-6)
     assert np.all(np.isnan(noise[grid == WALL]))
     # nav2's belief adds noise near the pit: the cell just above it is noisier than a far corner
-    nav2 = load_world("nav2")
+    nav2 = load_world("nav2-v1")
     noise2 = np.asarray(table_noise_map(nav2.belief()))
     assert np.asarray(nav2.params.grid)[2, 5] == PIT
     assert noise2[1, 5] > 2 * noise2[6, 1]
