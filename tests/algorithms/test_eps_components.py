@@ -24,7 +24,13 @@ from mindgap.envs.terrain import load_world, observe, world_from_dict
 from mindgap.envs.terrain.params import TerrainState
 from mindgap.models.agent_dynamics import dynamics_entropy, gaussian_entropy
 from mindgap.models.gaussian_dynamics import DynamicsModel, Norm
+from mindgap.models.reward_ensemble import REWARD_BOUND
 from mindgap.models.squashed import squashed_log_prob
+
+
+def _bounded(x):
+    """Every learned reward's soft bound, B·tanh(x/B)."""
+    return REWARD_BOUND * np.tanh(np.asarray(x, np.float64) / REWARD_BOUND)
 
 
 def linear_actor(gain, mean_bias, log_std):
@@ -68,7 +74,7 @@ def test_dynamics_entropy_reads_the_model_and_shifts_with_units():
 
 
 def _linear_u(weight, bias):
-    """A 2-member ensemble of one-layer u networks: member e gives tanh(weight[e] · obs_x + bias[e])."""
+    """A 2-member ensemble of one-layer u networks: member e gives B·tanh((weight[e] · obs_x + bias[e])/B)."""
     w = jnp.zeros((2, 4, 1)).at[:, 0, 0].set(jnp.asarray(weight, jnp.float32))
     return ((w, jnp.asarray(bias, jnp.float32)[:, None]),)
 
@@ -93,7 +99,7 @@ def test_reshaped_reward_on_hand_made_transitions(d1):
     r_a = np.array([rw.step + rw.progress * 0.5 + rw.goal, rw.step], np.float64)
 
     u_params = _linear_u([1.0, 3.0], [0.0, 0.5])
-    u_raw = np.mean([np.tanh(np.asarray(obs[:, 0])), np.tanh(3.0 * np.asarray(obs[:, 0]) + 0.5)], axis=0)
+    u_raw = np.mean([_bounded(np.asarray(obs[:, 0])), _bounded(3.0 * np.asarray(obs[:, 0]) + 0.5)], axis=0)
     u_mean, u_std, lam, min_std = 0.2, 0.5, 2.5, 0.01
     sigma_obs = min_std + np.log1p(np.exp(-1.0))  # T_A's std in observation units
     cells = np.array([7.0, 7.0]) / 2.0  # 7×7 map onto [−1, 1]²: 3.5 cells per observation unit
@@ -118,7 +124,7 @@ def test_normalisation_statistics_come_from_the_filled_buffer(d1):
         buf = replay_add(buf, jnp.array([x, 0.0]), jnp.zeros(2), jnp.array([x, 0.0]), 0.0, 0.0, False, 0)
     u_params = _linear_u([1.0, 1.0], [0.0, 0.0])
     mean, std = u_norm_from_replay(u_params, buf)
-    np.testing.assert_allclose([float(mean), float(std)], [np.tanh(xs).mean(), np.tanh(xs).std()], atol=1e-6)
+    np.testing.assert_allclose([float(mean), float(std)], [_bounded(xs).mean(), _bounded(xs).std()], atol=1e-6)
     params = eps_reward_params(d1, u_params, constant_dynamics([0.0, 0.0], 0.01), 1.0, min_std=0.01)
     h = 2 * (0.5 * np.log(2 * np.pi * np.e) + np.log((0.01 + np.log(2)) * 3.5))
     np.testing.assert_allclose(float(entropy_mean_from_replay(params, buf)), h, rtol=1e-5)

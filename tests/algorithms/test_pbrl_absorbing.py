@@ -16,6 +16,7 @@ from mindgap.data.replay import relabel, replay_add, replay_init, terminal_bonus
 from mindgap.data.segments import AbsorbingSegments, Segments
 from mindgap.envs.terrain import world_from_dict
 from mindgap.models.reward_ensemble import (
+    REWARD_BOUND,
     AbsorbingParams,
     RewardConfig,
     absorbing_reward,
@@ -105,7 +106,7 @@ def test_run_chunk_stores_the_bonus_on_terminal_transitions(key):
     assert terminal.sum() >= 5 and (~terminal).sum() >= 5  # goals reached and horizons hit
     truncated = np.asarray(with_bonus.ep_step) == NEXT_TO_GOAL["horizon"] - 1
     assert (truncated & ~terminal).any()  # horizon ends get no bonus (checked below with the rest)
-    bonus = GAMMA * np.tanh([0.6, 0.2]).mean() / (1 - GAMMA)
+    bonus = GAMMA * (REWARD_BOUND * np.tanh(np.array([0.6, 0.2]) / REWARD_BOUND)).mean() / (1 - GAMMA)
     np.testing.assert_array_equal(np.asarray(without.terminal), terminal)  # the same experience
     r = np.asarray(without.reward)
     np.testing.assert_allclose(np.asarray(with_bonus.reward), r + np.where(terminal, bonus, 0.0), rtol=1e-5)

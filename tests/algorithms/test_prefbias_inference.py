@@ -16,6 +16,7 @@ from mindgap.algorithms.prefbias_inference import (
     negative_elbo,
     prefbias_init,
     preference_prob,
+    scores_fixed,
     with_dynamics,
 )
 from mindgap.data.prefs import PrefData
@@ -26,11 +27,11 @@ from mindgap.models.bayes import init_gaussian
 from mindgap.models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes, train_dynamics
 from mindgap.models.mlp import init_mlp
 from mindgap.models.prefbias_nets import (
-    REWARD_BOUND,
     RewardWeights,
     absorbing_value,
     reward_sizes,
 )
+from mindgap.models.reward_ensemble import REWARD_BOUND
 from mindgap.planning.terrain_maps import belief_noise_map, table_noise_map
 from mindgap.teachers.preference import TeacherConfig, answer
 
@@ -119,6 +120,55 @@ def test_stay_head_scores_a_stay_by_its_probability(key):
     np.testing.assert_allclose(float(preference_prob(w, phi, norm, seg_a, seg_b, cfg)[0]), p, rtol=1e-4)
     state = prefbias_init(key, 2, 2, dataclasses.replace(cfg, belief_prior="random"), DynamicsModel(phi, norm))
     assert state.belief.mean[-1][1].shape == (5,)  # a random prior of the same architecture
+
+
+def test_units_state_a_move_s_density_in_the_world_s_units(key):
+    """With units c per observation unit, f_φ scores a move by its density per world unit², as the person does.
+
+    The belief network here outputs a constant Gaussian (zero weights), N(s + μ, σ²) in
+    observation units: per cell² that is N(c·(s + μ), (c·σ)²), whose log density is
+    Σ log c lower. A stay, a probability, is unit-free.
+    """
+    w, _, norm, seg_a, seg_b = _tiny_problem(key)
+    phi = init_mlp(jax.random.fold_in(key, 7), dynamics_sizes(2, 2, (6,), stay=True))
+    phi = jax.tree.map(jnp.zeros_like, phi[:-1]) + (
+        (jnp.zeros_like(phi[-1][0]), jnp.array([0.2, -0.1, 0.3, -0.4, 0.5])),
+    )
+    seg = seg_a._replace(next_obs=seg_a.next_obs.at[0, 1].set(seg_a.obs[0, 1]))  # a move, then a stay
+    cfg = PrefBiasConfig(
+        reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), stay_head=True, absorbing=False
+    )
+    units = jnp.array([5.0, 2.5])  # cells per observation unit (a 10 × 5-cell world on [−1, 1]²): Σ log = log 12.5
+    state = prefbias_init(key, 2, 2, cfg, DynamicsModel(phi, norm), units=units)
+    np.testing.assert_allclose(float(state.log_unit), np.log(12.5), rtol=1e-6)
+
+    out_mean, out_std = np.asarray(norm.out_mean, np.float64), np.asarray(norm.out_std, np.float64)
+    mean_obs = np.asarray(seg.obs[0, 0], np.float64) + out_mean + out_std * np.array([0.2, -0.1])
+    std_obs = out_std * (0.02 + np.log1p(np.exp([0.3, -0.4])))
+    c = np.asarray(units, np.float64)
+    move_cells = stats.norm.logpdf(c * np.asarray(seg.next_obs[0, 0], np.float64), c * mean_obs, c * std_obs).sum()
+    p_stay = 1 / (1 + np.exp(-0.5))
+    x = np.concatenate([np.asarray(seg.obs[0], np.float64), np.asarray(seg.act[0], np.float64)], -1)
+    r = REWARD_BOUND * np.tanh(_np_mlp(w, x)[:, 0] / REWARD_BOUND)
+    expect = r.sum() + np.log1p(-p_stay) + move_cells + np.log(p_stay)
+    got = scores_fixed(w, phi, norm, seg, cfg, state.log_unit)
+    np.testing.assert_allclose(float(got[0]), expect, rtol=1e-5)
+    # in observation units (log_unit 0) the move would be scored Σ log c = 2.53 nats higher
+    np.testing.assert_allclose(float(scores_fixed(w, phi, norm, seg, cfg)[0] - got[0]), np.log(12.5), rtol=1e-4)
+
+
+def test_one_preference_is_scored_under_one_draw_of_the_networks(key):
+    """Eq. 3.3's likelihood is p(d | w, φ): both segments of a pair, all their steps, one (w, φ).
+
+    Two identical segments then have S(a) − S(b) = 0 under every draw, so the cross-entropy
+    is log 2 exactly however wide q is (a draw per transition would give them different scores).
+    """
+    w, phi, norm, seg_a, _ = _tiny_problem(key)
+    cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,)), mc_samples=4, **PLAIN)
+    state = PrefBiasState(init_gaussian(w, 0.5), init_gaussian(phi, 0.5), w, phi, norm, (), ())
+    data = PrefData(seg_a, seg_a, jnp.array([1.0]), jnp.asarray(1, jnp.int32))
+    nll = negative_elbo(state, data, key, dataclasses.replace(cfg, kl_scale=0.0))
+    np.testing.assert_allclose(float(nll), np.log(2.0), rtol=1e-6)
 
 
 def test_negative_elbo_is_cross_entropy_plus_kl_over_n(key):

@@ -164,7 +164,8 @@ def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path,
     assert summary["experiment"] == "nav" and summary["config"]["seeds"] == 1
     claims = {c["text"]: c["held"] for c in summary["claims"]}
     assert claims["nav1-v1: PrefBias (30 queries) takes the ice corridor in most seeds"]
-    assert claims["nav1-v1: PEBBLE (30 queries) stays below PrefBias (30 queries)"]
+    assert claims["nav1-v1: PEBBLE (30 queries) stays at or below 80% of the oracle"]
+    assert claims["nav1-v1: PEBBLE (30 queries) takes the person's route (not the ice corridor) in most seeds"]
     for name in (
         "curves_nav1-v1.png",
         "curves_nav2-v1.png",
@@ -284,6 +285,58 @@ def test_metrics_on_hand_made_inputs():
     err = wm.reward_error(nav1, scaled, jnp.array([[3.0, 5.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
     np.testing.assert_allclose(err[:2], [0.0, 2.0], atol=1e-5)
     assert abs(err[2] - np.sqrt(2)) < 0.1
+
+
+def test_nav_asks_an_unbiased_person_too_and_states_the_issue_s_claims():
+    from mindgap.experiments import prefbias_nav
+
+    cfg = prefbias_nav.preset("full")
+    jobs = {j.key: j for j in prefbias_nav.jobs(cfg)}
+    assert {pc.teacher_of(jobs[k]) for k in ("nav1/prefbias-q800-unbiased", "nav1/pebble-q800-unbiased")} == {"true"}
+    assert {pc.teacher_of(jobs[k]) for k in ("nav1/prefbias-q800", "nav1/pebble-q800")} == {"biased"}
+    assert pc.teacher_of(jobs["nav1/sac"]) == "true"
+    assert not any("unbiased" in j.key for j in prefbias_nav.jobs(prefbias_nav.preset("fast")))
+
+    def row(method, norm, better, err, person="biased", std=0.05):
+        return dict(
+            method=method,
+            queries=800,
+            person=person,
+            label=f"{method} {person}",
+            seeds=5,
+            normalised_mean=norm,
+            normalised_std=std,
+            better_route=better,
+            reward_error_mean=err,
+        )
+
+    world = load_world("nav1")
+    held = {
+        c["text"]: c["held"]
+        for c in prefbias_nav._claims(
+            world,
+            [
+                row("prefbias", 0.95, 0.8, 0.3),
+                row("pebble", 0.6, 0.2, 0.7),
+                row("prefbias", 0.97, 1.0, 0.2, "unbiased"),
+                row("pebble", 0.99, 1.0, 0.2, "unbiased"),
+            ],
+        )
+    }
+    assert len(held) == 6 and all(held.values()), held
+    held = {
+        c["text"]: c["held"]
+        for c in prefbias_nav._claims(
+            world,
+            [
+                row("prefbias", 0.85, 0.4, 0.8),
+                row("pebble", 0.85, 0.6, 0.7),
+                row("prefbias", 0.80, 1.0, 0.2, "unbiased"),
+                row("pebble", 0.99, 1.0, 0.2, "unbiased"),
+            ],
+        )
+    }
+    assert len(held) == 6 and not any(held.values()), held
 
 
 def test_measures_on_a_world_without_a_map():

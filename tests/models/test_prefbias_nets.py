@@ -7,19 +7,19 @@ import numpy as np
 from mindgap.data.replay import relabel, replay_add, replay_init
 from mindgap.envs.terrain import load_world
 from mindgap.envs.terrain.layout import FLOOR, ICE, PIT, SAND, WALL
-from mindgap.models.bayes import Gaussian, init_gaussian, sample_params
+from mindgap.models.bayes import init_gaussian
 from mindgap.models.gaussian_dynamics import Norm, dynamics_sizes
 from mindgap.models.mlp import init_mlp
 from mindgap.models.prefbias_nets import (
-    REWARD_BOUND,
-    absorbing_local,
     absorbing_value,
     belief_predict,
+    draw_per_pair,
     posterior_reward,
     reward_sizes,
     reward_value,
     reward_weights_init,
 )
+from mindgap.models.reward_ensemble import REWARD_BOUND
 from mindgap.planning.terrain_maps import belief_noise_map, table_noise_map
 
 
@@ -109,38 +109,21 @@ def test_absorbing_head_is_a_bounded_linear_function_of_terminal_features(key):
     np.testing.assert_array_equal(absorbing_value(off, s_t), 0.0)
 
 
-def test_absorbing_local_reparameterisation_matches_weight_sampling(key):
-    """φ·μ + √(φ²σ²) ε has the mean and variance of φ·w, w ~ q (the soft bound is ≈ linear at this scale)."""
-    k_w, k_m, k_s, k_draw = jax.random.split(key, 4)
-    mean = reward_weights_init(k_w, 2, 2, (4,), absorbing=True)
-    mean = mean._replace(absorb=0.01 * jax.random.normal(k_m, (256,)))
-    sigma = jax.tree.map(lambda x: jnp.full_like(x, 0.005), mean)
-    post = Gaussian(mean, jax.tree.map(lambda s: jnp.log(jnp.expm1(s)), sigma))
-    s_t = jnp.array([[0.1, -0.3], [0.7, 0.7]])
-    n = 20000
-    rows = jnp.broadcast_to(s_t, (n, 2, 2))
-    local = np.asarray(absorbing_local(post, rows, k_draw))  # a draw per row
-    weights = jax.vmap(lambda k: sample_params(post, k))(jax.random.split(jax.random.fold_in(k_draw, 1), n))
-    sampled = np.asarray(jax.vmap(absorbing_value, in_axes=(0, None))(weights, s_t))
-    phi = _np_features(s_t)
-    exact_var = (phi**2) @ np.full(256, 0.005**2)
-    for draws in (local, sampled):
-        centre = phi @ np.asarray(mean.absorb, np.float64)
-        np.testing.assert_allclose(draws.mean(0), centre, atol=4 * np.sqrt(exact_var / n).max())
-        np.testing.assert_allclose(draws.var(0), exact_var, rtol=0.05)
-    # without a head there is nothing to draw
-    off = init_gaussian(reward_weights_init(k_w, 2, 2, (4,), absorbing=False), 0.02)
-    np.testing.assert_array_equal(absorbing_local(off, s_t, k_draw), 0.0)
-
-
-def test_absorbing_local_has_finite_gradients_beyond_the_features(key):
-    """A terminal state outside [−1, 1]² meets no feature (variance exactly 0): the draw is the mean, gradients finite."""
+def test_draw_per_pair_gives_each_pair_one_draw_of_all_weights(key):
+    """One draw from q per pair: every weight (r_w's and r_abs's) has q's mean and spread across pairs."""
     k_w, k_m, k_draw = jax.random.split(key, 3)
     mean = reward_weights_init(k_w, 2, 2, (4,), absorbing=True)
     mean = mean._replace(absorb=0.01 * jax.random.normal(k_m, (256,)))
-    post = init_gaussian(mean, 0.02)
-    s_t = jnp.array([[2.5, 0.0], [0.1, -0.3]])  # the first far outside the grid of centres, the second inside
-    draw = absorbing_local(post, s_t, k_draw)
-    assert float(draw[0]) == 0.0 and float(draw[1]) != 0.0
-    grads = jax.grad(lambda p: absorbing_local(p, s_t, k_draw).sum())(post)
-    assert all(np.all(np.isfinite(np.asarray(g))) for g in jax.tree.leaves(grads))
+    post = init_gaussian(mean, 0.05)
+    n = 4000
+    draws = draw_per_pair(post, k_draw, n)
+    assert jax.tree.structure(draws) == jax.tree.structure(mean)
+    for d, m in zip(jax.tree.leaves(draws), jax.tree.leaves(mean), strict=True):
+        d = np.asarray(d, np.float64)
+        assert d.shape == (n, *m.shape)
+        np.testing.assert_allclose(d.mean(0), m, atol=4.5 * 0.05 / np.sqrt(n))
+        np.testing.assert_allclose(d.std(0), 0.05, rtol=0.1)
+    # different pairs, different functions
+    s_t = jnp.array([[0.1, -0.3]])
+    values = jax.vmap(absorbing_value, in_axes=(0, None))(jax.tree.map(lambda x: x[:3], draws), s_t)[:, 0]
+    assert len(set(np.asarray(values).tolist())) == 3

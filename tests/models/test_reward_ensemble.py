@@ -11,16 +11,23 @@ from mindgap.feedback.queries import query_scores
 from mindgap.models.reward_ensemble import (
     RBF_GAIN,
     RBF_PER_AXIS,
+    REWARD_BOUND,
     AbsorbingParams,
     RewardConfig,
     absorbing_features,
     absorbing_reward,
     bt_loss,
     ensemble_reward,
+    member_absorbing_rewards,
+    member_rewards,
     reward_init,
     segment_returns,
     train_reward,
 )
+
+
+def _bounded(x):
+    return REWARD_BOUND * np.tanh(x / REWARD_BOUND)
 
 
 def _seg(obs_x, mask=None):
@@ -32,13 +39,13 @@ def _seg(obs_x, mask=None):
 
 
 def test_bt_loss_matches_hand_computation():
-    # one member whose reward is tanh(x): a zero hidden layer, identity-like path via the output bias
+    # one member whose reward is B·tanh(x/B): a zero hidden layer, identity-like path via the output bias
     w1, b1 = jnp.zeros((4, 1)).at[0, 0].set(1.0), jnp.zeros(1)
     w2, b2 = jnp.ones((1, 1)), jnp.zeros(1)
     params = jax.tree.map(lambda x: x[None], ((w1, b1), (w2, b2)))
-    a = _seg([[0.5, 0.5]])  # relu(0.5) → tanh(0.5) per step
-    b = _seg([[-0.5, 0.2]], mask=[[True, False]])  # relu(−0.5) = 0 → tanh(0) = 0, second step masked
-    ra, rb = 2 * np.tanh(0.5), 0.0
+    a = _seg([[0.5, 0.5]])  # relu(0.5) → B·tanh(0.5/B) per step
+    b = _seg([[-0.5, 0.2]], mask=[[True, False]])  # relu(−0.5) = 0 → 0, second step masked
+    ra, rb = 2 * _bounded(0.5), 0.0
     np.testing.assert_allclose(np.asarray(segment_returns(params, a))[0, 0], ra, rtol=1e-6)
     np.testing.assert_allclose(np.asarray(segment_returns(params, b))[0, 0], rb, atol=1e-7)
     for y in (1.0, 0.0, 0.5):
@@ -87,8 +94,8 @@ def test_prefs_add_drops_skipped_and_respects_capacity():
     np.testing.assert_array_equal(np.asarray(data.label), [1.0, 1.0, 0.5])
 
 
-def _tanh_x_member(absorb):
-    """One member whose step reward is tanh(relu(x)), with a single absorbing state of reward tanh(absorb)."""
+def _bounded_x_member(absorb):
+    """One member whose step reward is B·tanh(relu(x)/B), with a single absorbing state of reward B·tanh(absorb/B)."""
     w1, b1 = jnp.zeros((4, 1)).at[0, 0].set(1.0), jnp.zeros(1)
     w2, b2 = jnp.ones((1, 1)), jnp.zeros(1)
     head = jnp.array([[absorb]])  # one constant feature
@@ -96,20 +103,20 @@ def _tanh_x_member(absorb):
 
 
 def test_segment_return_counts_absorbing_steps():
-    """Σ mask·r(s, a) + Σ absorbed·r_abs, with r_abs = tanh(θ_abs) (Kostrikov et al. 2019)."""
-    params = _tanh_x_member(0.7)
+    """Σ mask·r(s, a) + Σ absorbed·r_abs, with r_abs = B·tanh(θ_abs/B) (Kostrikov et al. 2019)."""
+    params = _bounded_x_member(0.7)
     plain = _seg([[0.5, 0.3, 9.0, 9.0]], mask=[[True, True, False, False]])
     seg = AbsorbingSegments(*plain, jnp.array([[False, False, True, True]]))  # reached the goal after 2 steps
-    expect = np.tanh(0.5) + np.tanh(0.3) + 2 * np.tanh(0.7)
+    expect = _bounded(0.5) + _bounded(0.3) + 2 * _bounded(0.7)
     np.testing.assert_allclose(float(segment_returns(params, seg)[0, 0]), expect, rtol=1e-6)
     np.testing.assert_allclose(  # a plain segment has no absorbing steps
-        float(segment_returns(params, plain)[0, 0]), np.tanh(0.5) + np.tanh(0.3), rtol=1e-6
+        float(segment_returns(params, plain)[0, 0]), _bounded(0.5) + _bounded(0.3), rtol=1e-6
     )
     np.testing.assert_allclose(  # parameters without an absorbing state ignore them, as before
-        float(segment_returns(params.net, seg)[0, 0]), np.tanh(0.5) + np.tanh(0.3), rtol=1e-6
+        float(segment_returns(params.net, seg)[0, 0]), _bounded(0.5) + _bounded(0.3), rtol=1e-6
     )
     s_t = jnp.array([[0.3, 0.0], [-5.0, 1.0]])
-    np.testing.assert_allclose(np.asarray(absorbing_reward(params, s_t)), [np.tanh(0.7)] * 2, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(absorbing_reward(params, s_t)), [_bounded(0.7)] * 2, rtol=1e-6)
     np.testing.assert_array_equal(np.asarray(absorbing_reward(params.net, s_t)), [0.0, 0.0])
     grid = jnp.array([[0.5, 0.0], [-1.0, 0.0]])
     np.testing.assert_array_equal(  # the step reward does not depend on the absorbing state
@@ -126,28 +133,28 @@ def test_each_terminal_state_has_its_own_absorbing_reward():
     assert phi([[0.3, -0.2]]).shape == (1, RBF_PER_AXIS**2)
     w = np.zeros((1, RBF_PER_AXIS**2), np.float32)
     w[0, 0] = 0.05
-    params = _tanh_x_member(0.0)._replace(absorb=jnp.asarray(w))
+    params = _bounded_x_member(0.0)._replace(absorb=jnp.asarray(w))
     near, far = [-1.0, -0.95], [0.0, 0.0]
     nxt = jnp.asarray([[[0.1, 0.0], near, near, near], [[0.1, 0.0], [0.2, 0.0], far, far]], jnp.float32)
     obs = nxt.at[:, :, 0].set(0.2)
     mask = jnp.array([[True, True, False, False], [True, True, True, False]])
     seg = AbsorbingSegments(obs, jnp.zeros_like(obs), nxt, mask, ~mask)
     # segment 0 ended near the first centre (2 absorbing steps), segment 1 far from it (1 step)
-    r_near = np.tanh(0.05 * phi([near])[0, 0])
-    assert r_near > 0.5 and abs(np.tanh(0.05 * phi([far])[0, 0])) < 1e-6  # local: 0 where nothing was learned
-    expect = [2 * np.tanh(0.2) + 2 * r_near, 3 * np.tanh(0.2)]
+    r_near = _bounded(0.05 * phi([near])[0, 0])
+    assert r_near > 0.5 and abs(_bounded(0.05 * phi([far])[0, 0])) < 1e-6  # local: 0 where nothing was learned
+    expect = [2 * _bounded(0.2) + 2 * r_near, 3 * _bounded(0.2)]
     np.testing.assert_allclose(np.asarray(segment_returns(params, seg)[0]), expect, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(np.asarray(absorbing_reward(params, nxt[:, 1])), [r_near, 0.0], rtol=1e-5, atol=1e-6)
 
 
 def test_bt_loss_gradient_reaches_the_absorbing_reward():
-    params = _tanh_x_member(0.2)
+    params = _bounded_x_member(0.2)
     a = AbsorbingSegments(*_seg([[0.5, 0.0, 0.0]], mask=[[True, False, False]]), jnp.array([[False, True, True]]))
     b = AbsorbingSegments(*_seg([[0.1, 0.1, 0.1]]), jnp.zeros((1, 3), bool))
     g = jax.grad(bt_loss)(params, a, b, jnp.array([1.0]), jnp.ones((1, 1)))
-    # d loss / d θ_abs = −(1 − σ(R_a − R_b)) · 2 · (1 − tanh²(θ_abs)) for a preferred segment a
-    ra, rb = np.tanh(0.5) + 2 * np.tanh(0.2), 3 * np.tanh(0.1)
-    expect = -(1 - 1 / (1 + np.exp(-(ra - rb)))) * 2 * (1 - np.tanh(0.2) ** 2)
+    # d loss / d θ_abs = −(1 − σ(R_a − R_b)) · 2 · (1 − tanh²(θ_abs/B)) for a preferred segment a
+    ra, rb = _bounded(0.5) + 2 * _bounded(0.2), 3 * _bounded(0.1)
+    expect = -(1 - 1 / (1 + np.exp(-(ra - rb)))) * 2 * (1 - np.tanh(0.2 / REWARD_BOUND) ** 2)
     got = float(g.absorb[0, 0])
     np.testing.assert_allclose(got, expect, rtol=1e-5)
     assert got < 0  # preferring the segment that ended raises r_abs
@@ -219,3 +226,28 @@ def test_a_terminal_absorbing_head_is_refused_beyond_three_dimensions(key):
     with pytest.raises(ValueError, match="at most 3 observation dimensions.*this world has 11"):
         reward_init(key, 11, 3, cfg, absorbing="terminal")
     assert reward_init(key, 11, 3, cfg, absorbing="single").params.absorb.shape == (2, 1)
+
+
+def _constant_output(layers, value):
+    """The MLP (or stack of MLPs) with its last layer's weights zeroed and its bias set to ``value``."""
+    w, b = layers[-1]
+    return (*layers[:-1], (jnp.zeros_like(w), jnp.full_like(b, value)))
+
+
+def test_pebble_and_prefbias_rewards_share_one_soft_bound(key):
+    """Both learned rewards are B·tanh(x/B) with the same B, wide enough for scores of several nats a step."""
+    from mindgap.models.mlp import init_mlp
+    from mindgap.models.prefbias_nets import reward_sizes, reward_value
+
+    state = reward_init(key, 2, 2, RewardConfig(members=2, hidden=(8,)), absorbing="terminal")
+    obs, act = jnp.zeros((1, 2)), jnp.zeros((1, 2))
+    r_w = init_mlp(key, reward_sizes(2, 2, (8,)))
+    for raw in (-40.0, -2.5, 0.3, 2.5, 40.0):
+        pebble = float(member_rewards(_constant_output(state.params.net, raw), obs, act)[0, 0])
+        prefbias = float(reward_value(_constant_output(r_w, raw), obs, act)[0])
+        assert pebble == pytest.approx(prefbias, rel=1e-6)
+        assert pebble == pytest.approx(REWARD_BOUND * np.tanh(raw / REWARD_BOUND), rel=1e-5)
+    assert REWARD_BOUND >= 5.0  # a biased person's score of 2.5 nats a step is representable, nearly unsquashed
+    assert float(member_rewards(_constant_output(state.params.net, 2.5), obs, act)[0, 0]) > 2.4
+    far = state.params._replace(absorb=jnp.full_like(state.params.absorb, 100.0))
+    assert float(member_absorbing_rewards(far, jnp.zeros((1, 2))).max()) == pytest.approx(REWARD_BOUND, rel=1e-5)

@@ -133,7 +133,7 @@ def _init(key, env: Env, cfg: PrefBiasLoopConfig):
     k_loop, k_dyn, k_model, k_run = jax.random.split(key, 4)
     norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))
     dyn = dynamics_init(k_dyn, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
-    return PrefBiasModel(prefbias_init(k_model, d, a, pcfg, dyn), dyn), k_loop, k_run
+    return PrefBiasModel(prefbias_init(k_model, d, a, pcfg, dyn, jnp.ones(d)), dyn), k_loop, k_run
 
 
 def _select(m: PrefBiasModel, buf, key, w, env, cfg: PrefBiasLoopConfig):
@@ -153,7 +153,7 @@ def _select(m: PrefBiasModel, buf, key, w, env, cfg: PrefBiasLoopConfig):
     fresh = dynamics_init(k_psi0, d, a, pcfg.dynamics, norm, stay=pcfg.stay_head)
     start = _where(first, fresh, m.dynamics)
     dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, pcfg.dynamics, init=start)
-    model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn), with_dynamics(m.posterior, dyn, pcfg))
+    model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn, w.units), with_dynamics(m.posterior, dyn, pcfg))
     seg_a, seg_b = select_queries(
         k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples
     )

@@ -19,7 +19,13 @@ negative ELBO of Eq. 3.3, per answered pair::
 
 N the number of answered pairs: dividing Eq. 3.3 by N makes ``kl_scale = 1`` the exact
 ELBO, and smaller values temper the prior. The expectation is a Monte Carlo average over
-``mc_samples`` draws with the local reparameterisation trick (a draw per transition).
+``mc_samples`` draws, each one draw of (w, φ) per answered pair shared by all the steps of
+its two segments (:func:`~mindgap.models.prefbias_nets.draw_per_pair`): the likelihood of
+one answer is p(d | w, φ) for one reward function and one belief.
+
+Units: f_φ's density of a move is stated in the world's units (``PrefBiasState.log_unit``,
+:mod:`~mindgap.models.prefbias_nets`, "Units"), those of the person's log T_H, so that the
+person's own belief scores segments as the person does.
 Priors: p(w) = N(w₀, s_w²) centred on a random initialisation w₀; p(φ) = N(ψ, s_φ²)
 centred on the agent's dynamics model f_ψ (``belief_prior="dynamics"``, the default) or on
 a random initialisation (``"random"``), §3.3.3.1 "Prior".
@@ -46,11 +52,9 @@ from ..models.bayes import Gaussian, init_gaussian, kl_divergence
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes
 from ..models.mlp import Params, init_mlp
 from ..models.prefbias_nets import (
-    absorbing_local,
     absorbing_value,
     belief_log_prob,
-    belief_log_prob_local,
-    reward_local,
+    draw_per_pair,
     reward_value,
     reward_weights_init,
 )
@@ -87,7 +91,7 @@ class PrefBiasConfig:
     kl_scale: float = 1.0
     """Weight of the KL terms per answered pair is kl_scale / N; 1 is the ELBO of Eq. 3.3."""
     mc_samples: int = 1
-    """Monte Carlo draws (local reparameterisation) per likelihood estimate."""
+    """Monte Carlo draws per likelihood estimate (each a draw of (w, φ) per answered pair)."""
     lr: float = 1e-3
     """Adam step size of both posteriors."""
     batch_size: int = 64
@@ -106,7 +110,8 @@ class PrefBiasConfig:
 
 
 class PrefBiasState(NamedTuple):
-    """Posteriors, the centres of their priors, the normalisation f_φ reads, optimiser states."""
+    """Posteriors, the centres of their priors, the normalisation f_φ reads, optimiser states, and
+    Σ log of the world's units per observation unit (0: densities per observation unit)."""
 
     reward: Gaussian
     belief: Gaussian
@@ -115,6 +120,7 @@ class PrefBiasState(NamedTuple):
     norm: Norm
     opt_w: optax.OptState
     opt_phi: optax.OptState
+    log_unit: jax.Array | float = 0.0
 
 
 class FitInfo(NamedTuple):
@@ -124,13 +130,17 @@ class FitInfo(NamedTuple):
     accuracy: jax.Array
 
 
-def prefbias_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: PrefBiasConfig, dynamics: DynamicsModel):
+def prefbias_init(
+    key: jax.Array, obs_dim: int, act_dim: int, cfg: PrefBiasConfig, dynamics: DynamicsModel, units=None
+) -> PrefBiasState:
     """Priors and posteriors before any preference (Alg. 2, line 1).
 
     q(w) starts at the centre of p(w), a random initialisation (with ``cfg.absorbing`` also
     an absorbing head of zeros: r_abs = 0 a priori); q(φ) at the centre of p(φ):
     f_ψ's parameters (``"dynamics"``) or a random initialisation (``"random"``). f_φ reads
-    ``dynamics.norm`` in both cases. All posterior σ start at ``cfg.init_std``.
+    ``dynamics.norm`` in both cases. All posterior σ start at ``cfg.init_std``. ``units [d]``:
+    the world's units per observation unit (:meth:`~mindgap.envs.interface.World.obs_units`),
+    the units f_φ's densities are stated in; None keeps observation units.
     """
     cfg.check()
     k_w, k_phi = jax.random.split(key)
@@ -142,7 +152,8 @@ def prefbias_init(key: jax.Array, obs_dim: int, act_dim: int, cfg: PrefBiasConfi
     reward, belief = init_gaussian(w0, cfg.init_std), init_gaussian(phi0, cfg.init_std)
     opt = optax.adam(cfg.lr)
     opt_w, opt_phi = opt.init(ravel_pytree(reward)[0]), opt.init(ravel_pytree(belief)[0])  # see fit
-    return PrefBiasState(reward, belief, w0, phi0, dynamics.norm, opt_w, opt_phi)
+    log_unit = jnp.zeros(()) if units is None else jnp.sum(jnp.log(jnp.asarray(units, jnp.float32)))
+    return PrefBiasState(reward, belief, w0, phi0, dynamics.norm, opt_w, opt_phi, log_unit)
 
 
 def with_dynamics(state: PrefBiasState, dynamics: DynamicsModel, cfg: PrefBiasConfig) -> PrefBiasState:
@@ -175,38 +186,45 @@ def _pair(seg_a: Segments, seg_b: Segments) -> Segments:
     return jax.tree.map(lambda x, y: jnp.stack([x, y]), seg_a, seg_b)
 
 
-def _logits_local(reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, keys, cfg: PrefBiasConfig):
-    """S(a) − S(b) of each pair for one local-reparameterisation draw of r_w, r_abs and f_φ (keys [3]): [K]."""
-    seg = _pair(seg_a, seg_b)
-    k_r, k_f, k_a = keys[0], keys[1], keys[2]
-    r = reward_local(reward, seg.obs, seg.act, k_r)
-    lf = belief_log_prob_local(belief, norm, seg.obs, seg.act, seg.next_obs, k_f, cfg.dynamics.min_std)
-    s = segment_scores(r, lf, seg.mask) + absorbed_scores(absorbing_local(reward, terminal_obs(seg), k_a), seg)
-    return s[0] - s[1]
+def _logits_drawn(reward: Gaussian, belief: Gaussian, norm: Norm, log_unit, seg_a, seg_b, keys, cfg: PrefBiasConfig):
+    """S(a) − S(b) of each pair, each pair under its own draw (w, φ) ~ q(w) q(φ) (keys [2]): [K]."""
+    per_pair = jax.tree.map(lambda a, b: jnp.stack([a, b], 1), seg_a, seg_b)  # [K, 2, L, ·]
+    k = per_pair.mask.shape[0]
+    ws, phis = draw_per_pair(reward, keys[0], k), draw_per_pair(belief, keys[1], k)
+    s = jax.vmap(lambda w, phi, seg: scores_fixed(w, phi, norm, seg, cfg, log_unit))(ws, phis, per_pair)
+    return s[:, 0] - s[:, 1]
 
 
-def scores_fixed(w: Params, phi: Params, norm: Norm, seg: Segments, cfg: PrefBiasConfig) -> jax.Array:
-    """S(τ) of each segment for fixed weights of r_w and f_φ (posterior means or one draw): [K]."""
-    lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std)
+def scores_fixed(w: Params, phi: Params, norm: Norm, seg: Segments, cfg: PrefBiasConfig, log_unit=0.0) -> jax.Array:
+    """S(τ) of each segment for fixed weights of r_w and f_φ (posterior means or one draw): [K].
+
+    ``log_unit``: the state's (:class:`PrefBiasState`), so that f_φ scores in the world's units.
+    """
+    lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std, log_unit)
     s = segment_scores(reward_value(w, seg.obs, seg.act), lf, seg.mask)
     return s + absorbed_scores(absorbing_value(w, terminal_obs(seg)), seg)
 
 
-def preference_prob(w: Params, phi: Params, norm: Norm, seg_a: Segments, seg_b: Segments, cfg: PrefBiasConfig):
+def preference_prob(
+    w: Params, phi: Params, norm: Norm, seg_a: Segments, seg_b: Segments, cfg: PrefBiasConfig, log_unit=0.0
+):
     """p̂(a ≻ b | w, φ) of Eq. 3.4 for fixed weights: [K]."""
-    s = scores_fixed(w, phi, norm, _pair(seg_a, seg_b), cfg)
+    s = scores_fixed(w, phi, norm, _pair(seg_a, seg_b), cfg, log_unit)
     return jax.nn.sigmoid(s[0] - s[1])
 
 
-def expected_nll(reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, label, keys, cfg: PrefBiasConfig):
+def expected_nll(
+    reward: Gaussian, belief: Gaussian, norm: Norm, seg_a, seg_b, label, keys, cfg: PrefBiasConfig, log_unit=0.0
+):
     """Monte Carlo estimate of E_q[CE] per pair (the likelihood term of Eq. 3.3 divided by N): scalar.
 
-    ``keys [M, 3]``: one triple of keys (reward, belief, absorbing reward) per draw; split
-    them with ``jax.random.split(key, (cfg.mc_samples, 3))``.
+    ``keys [M, 2]``: one pair of keys (reward, belief) per draw; split them with
+    ``jax.random.split(key, (cfg.mc_samples, 2))``. Each draw gives every pair its own (w, φ).
     """
 
     def draw(k):
-        return bt_cross_entropy(_logits_local(reward, belief, norm, seg_a, seg_b, k, cfg), label).mean()
+        logit = _logits_drawn(reward, belief, norm, log_unit, seg_a, seg_b, k, cfg)
+        return bt_cross_entropy(logit, label).mean()
 
     return jax.vmap(draw)(keys).mean()
 
@@ -217,10 +235,10 @@ def negative_elbo(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: Pre
     seen = jnp.arange(data.label.shape[0]) < data.count
 
     def draw(k):
-        logit = _logits_local(state.reward, state.belief, state.norm, data.seg_a, data.seg_b, k, cfg)
+        logit = _logits_drawn(state.reward, state.belief, state.norm, state.log_unit, data.seg_a, data.seg_b, k, cfg)
         return jnp.sum(jnp.where(seen, bt_cross_entropy(logit, data.label), 0.0)) / n
 
-    nll = jax.vmap(draw)(jax.random.split(key, (cfg.mc_samples, 3))).mean()
+    nll = jax.vmap(draw)(jax.random.split(key, (cfg.mc_samples, 2))).mean()
     kl = kl_divergence(state.reward, state.reward_prior, cfg.reward_prior_std) + kl_divergence(
         state.belief, state.belief_prior, cfg.belief_prior_std
     )
@@ -248,12 +266,12 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
     # cost far more compile time than their share of the work.
     k_idx, k_mc = jax.random.split(key)
     all_idx = jax.random.randint(k_idx, (2 * cfg.updates, cfg.batch_size), 0, n)
-    all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 3))
+    all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 2))
 
     def loss_fn(w, phi, idx, keys):
         reward, belief = unravel_w(w), unravel_phi(phi)
         seg_a, seg_b = jax.tree.map(lambda x: x[idx], data.seg_a), jax.tree.map(lambda x: x[idx], data.seg_b)
-        nll = expected_nll(reward, belief, state.norm, seg_a, seg_b, data.label[idx], keys, cfg)
+        nll = expected_nll(reward, belief, state.norm, seg_a, seg_b, data.label[idx], keys, cfg, state.log_unit)
         kl_w = kl_divergence(reward, state.reward_prior, cfg.reward_prior_std)
         kl_phi = kl_divergence(belief, state.belief_prior, cfg.belief_prior_std)
         return nll + kl_weight * (kl_w + kl_phi)
@@ -276,7 +294,7 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
     carry = ((flat_w, flat_phi), (state.opt_w, state.opt_phi))
     ((flat_w, flat_phi), (opt_w, opt_phi)), (losses_w, _) = jax.lax.scan(step, carry, pairs)
     state = state._replace(reward=unravel_w(flat_w), belief=unravel_phi(flat_phi), opt_w=opt_w, opt_phi=opt_phi)
-    p = preference_prob(state.reward.mean, state.belief.mean, state.norm, data.seg_a, data.seg_b, cfg)
+    p = preference_prob(state.reward.mean, state.belief.mean, state.norm, data.seg_a, data.seg_b, cfg, state.log_unit)
     seen = jnp.arange(data.label.shape[0]) < data.count
     hit = ((p > 0.5) == (data.label > 0.5)) | (data.label == 0.5)
     return state, FitInfo(losses_w[-1], jnp.sum(hit & seen) / n)

@@ -36,7 +36,7 @@ def posterior_preferences(state: PrefBiasState, seg_a: Segments, seg_b: Segments
     def one(k):
         k_w, k_phi = jax.random.split(k)
         w, phi = sample_params(state.reward, k_w), sample_params(state.belief, k_phi)
-        return preference_prob(w, phi, state.norm, seg_a, seg_b, cfg)
+        return preference_prob(w, phi, state.norm, seg_a, seg_b, cfg, state.log_unit)
 
     return jax.vmap(one)(jax.random.split(key, samples))
 
@@ -55,8 +55,8 @@ def preference_disagreement(
     r_w and f_φ at their posterior means; f_ψ read through its own normalisation.
     """
     w = state.reward.mean
-    p_agent = preference_prob(w, dynamics.params, dynamics.norm, seg_a, seg_b, cfg)
-    p_person = preference_prob(w, state.belief.mean, state.norm, seg_a, seg_b, cfg)
+    p_agent = preference_prob(w, dynamics.params, dynamics.norm, seg_a, seg_b, cfg, state.log_unit)
+    p_person = preference_prob(w, state.belief.mean, state.norm, seg_a, seg_b, cfg, state.log_unit)
     return bernoulli_kl(p_agent, p_person)
 
 

@@ -140,9 +140,30 @@ def oracle_job(world: str, learn: Learners) -> Job:
     return Job(f"{world}/sac", world, "sac", "SAC (oracle)", learn.sac, {"queries": 0})
 
 
-def pebble_job(world: str, learn: Learners, queries: int) -> Job:
+PERSONS = ("biased", "unbiased")
+"""Who answers a learner's queries: the world's biased person (r_H + log T_H) or an unbiased one (r_H + log T)."""
+
+
+def pebble_job(world: str, learn: Learners, queries: int, person: str = "biased") -> Job:
+    """A PEBBLE job; with ``person="unbiased"`` the person scores by the true dynamics (tag ``person``)."""
     cfg = dataclasses.replace(learn.pebble, queries=queries)
-    return Job(f"{world}/pebble-q{queries}", world, "pebble", f"PEBBLE ({queries} queries)", cfg, {"queries": queries})
+    if person == "biased":
+        return Job(
+            f"{world}/pebble-q{queries}", world, "pebble", f"PEBBLE ({queries} queries)", cfg, {"queries": queries}
+        )
+    label = f"PEBBLE ({queries} queries, {person} person)"
+    return Job(
+        f"{world}/pebble-q{queries}-{person}", world, "pebble", label, cfg, {"queries": queries, "person": person}
+    )
+
+
+def teacher_of(job: Job) -> str:
+    """The engine's teacher for a job: SAC's reward is the truth, an unbiased person's too (``true``),
+    everyone else asks the biased person (``biased``)."""
+    person = job.tags.get("person", "biased")
+    if person not in PERSONS:
+        raise ValueError(f"{job.key}: unknown person {person!r}: choose from {', '.join(PERSONS)}")
+    return "true" if job.method == "sac" or person == "unbiased" else "biased"
 
 
 def compute_job(folder: RunFolder, job: Job, seeds: int, *, fresh: bool, progress: bool) -> dict:
@@ -204,10 +225,10 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
     """Train every seed of one learner (vmapped, checkpointed in ``out``) and measure it."""
     kw = dict(seeds=seeds, out=out, progress=progress, fresh=fresh)
     if job.method == "prefbias":
-        res = prefbias_alg.train(world, job.cfg, teacher="biased", **kw)
+        res = prefbias_alg.train(world, job.cfg, teacher=teacher_of(job), **kw)
         fn, params = posterior_reward, res["carry"].model.posterior.reward.mean
     else:
-        res = pbrl.train(world, job.cfg, teacher="true" if job.method == "sac" else "biased", **kw)
+        res = pbrl.train(world, job.cfg, teacher=teacher_of(job), **kw)
         fn, params = ensemble_reward, res["carry"].model.params
     final = np.asarray(res["final_returns"], np.float64)
     if not np.all(np.isfinite(final)):

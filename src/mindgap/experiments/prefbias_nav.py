@@ -3,8 +3,11 @@
 On each world a simulated person with the world's belief (nav1: the robot slides on ice and
 copes with sand; nav2: the nearer the pit, the likelier a fall) answers preference queries
 by Σ [r_H + log T_H]. PrefBias learns from 200, 400 and 800 of them; PEBBLE from the same
-person with 800; SAC on the true reward is the oracle. All share one schedule
-(:func:`~.prefbias_common.learners`); every (world, learner) is one job, its seeds vmapped.
+person with 800; SAC on the true reward is the oracle. With ``unbiased`` (the default),
+PrefBias and PEBBLE also learn from an unbiased person (Σ [r_H + log T]) at the largest
+budget: the control that PrefBias costs nothing when there is no bias to find. All share one
+schedule (:func:`~.prefbias_common.learners`); every (world, learner, person) is one job, its
+seeds vmapped.
 
 Outputs in the run folder:
 
@@ -43,6 +46,8 @@ class NavConfig:
     """PrefBias query budgets."""
     pebble_queries: int = 800
     """PEBBLE's budget (same person, same schedule)."""
+    unbiased: bool = True
+    """Also run PrefBias (largest budget) and PEBBLE with an unbiased person."""
     seeds: int = 5
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))
     reference: pc.ReferenceConfig = pc.ReferenceConfig()
@@ -53,7 +58,7 @@ def preset(name: str) -> NavConfig:
     if name == "full":
         return NavConfig()
     if name == "fast":
-        return NavConfig(budgets=(30,), pebble_queries=30, seeds=1, learners=pc.learners("fast"))
+        return NavConfig(budgets=(30,), pebble_queries=30, seeds=1, unbiased=False, learners=pc.learners("fast"))
     raise ValueError(f"unknown preset {name!r}: use 'fast' or 'full'")
 
 
@@ -65,6 +70,12 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
         for q in cfg.budgets:
             pb = replace(cfg.learners.prefbias, queries=q)
             out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries)", f"prefbias-q{q}"))
+        if cfg.unbiased:
+            q = max(cfg.budgets)
+            pb = replace(cfg.learners.prefbias, queries=q)
+            label = f"PrefBias ({q} queries, unbiased person)"
+            out.append(pc.prefbias_job(w, pb, label, f"prefbias-q{q}-unbiased", person="unbiased"))
+            out.append(pc.pebble_job(w, cfg.learners, cfg.pebble_queries, person="unbiased"))
     return out
 
 
@@ -76,7 +87,8 @@ def run(cfg: NavConfig, out: Path, *, fresh=False, progress=True, assemble_only=
 
 
 def _order(rec: dict) -> tuple:
-    return ({"prefbias": 0, "pebble": 1, "sac": 2}[rec["method"]], rec["tags"].get("queries", 0))
+    unbiased = rec["tags"].get("person") == "unbiased"
+    return (unbiased, {"prefbias": 0, "pebble": 1, "sac": 2}[rec["method"]], rec["tags"].get("queries", 0))
 
 
 def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
@@ -119,24 +131,38 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
     return summary
 
 
+PEBBLE_CEILING = 0.8
+"""The normalised score PEBBLE must stay at or below on a world that shows the effect (issue 25)."""
+PREFBIAS_FLOOR = 0.9
+"""The normalised score PrefBias must reach (issue 25)."""
+
+
+def _se(a: dict, b: dict) -> float:
+    """Standard error of the difference of two rows' normalised means (seeds independent)."""
+    return float(np.sqrt(a["normalised_std"] ** 2 / max(a["seeds"], 1) + b["normalised_std"] ** 2 / max(b["seeds"], 1)))
+
+
 def _claims(world, rows: list[dict]) -> list[dict]:
-    """What issue 6 asks of the full run, measured on this world (held is False where not measured)."""
-    pb = [r for r in rows if r["method"] == "prefbias"]
-    peb = [r for r in rows if r["method"] == "pebble"]
+    """What the issues ask of the full run, measured on this world (held is False where not measured)."""
+    biased = [r for r in rows if r.get("person", "biased") == "biased"]
+    unbiased = [r for r in rows if r.get("person") == "unbiased"]
+    pb = [r for r in biased if r["method"] == "prefbias"]
+    peb = [r for r in biased if r["method"] == "pebble"]
     if not pb:
         return []
     top = max(pb, key=lambda r: r["queries"])
+    route = wm.route_name(world)
     out = [
         pc.claim(
-            f"{world.name}: {top['label']} reaches ≥ 90% of the oracle",
-            top["normalised_mean"] >= 0.9,
+            f"{world.name}: {top['label']} reaches ≥ {PREFBIAS_FLOOR:.0%} of the oracle",
+            top["normalised_mean"] >= PREFBIAS_FLOOR,
             f"normalised {top['normalised_mean']:.2f}",
         )
     ]
-    if wm.route_name(world) != "-":  # a world whose [expect] names the better route
+    if route != "-":  # a world whose [expect] names the better route
         out.append(
             pc.claim(
-                f"{world.name}: {top['label']} takes {wm.route_name(world)} in most seeds",
+                f"{world.name}: {top['label']} takes {route} in most seeds",
                 top["better_route"] > 0.5,
                 f"{pc.share(top['better_route'])} of seeds",
             )
@@ -144,9 +170,37 @@ def _claims(world, rows: list[dict]) -> list[dict]:
     for r in peb:
         out.append(
             pc.claim(
-                f"{world.name}: {r['label']} stays below {top['label']}",
-                r["normalised_mean"] < top["normalised_mean"],
-                f"normalised {r['normalised_mean']:.2f} vs {top['normalised_mean']:.2f}",
+                f"{world.name}: {r['label']} stays at or below {PEBBLE_CEILING:.0%} of the oracle",
+                r["normalised_mean"] <= PEBBLE_CEILING,
+                f"normalised {r['normalised_mean']:.2f}",
+            )
+        )
+        if route != "-":
+            out.append(
+                pc.claim(
+                    f"{world.name}: {r['label']} takes the person's route (not {route}) in most seeds",
+                    r["better_route"] < 0.5,
+                    f"{pc.share(1 - r['better_route'])} of seeds off {route}",
+                )
+            )
+        if "reward_error_mean" in top and "reward_error_mean" in r:
+            out.append(
+                pc.claim(
+                    f"{world.name}: {top['label']}'s reward error is below {r['label']}'s",
+                    top["reward_error_mean"] < r["reward_error_mean"],
+                    f"{top['reward_error_mean']:.2f} vs {r['reward_error_mean']:.2f}",
+                )
+            )
+    u_pb = [r for r in unbiased if r["method"] == "prefbias"]
+    u_peb = [r for r in unbiased if r["method"] == "pebble"]
+    if u_pb and u_peb:
+        a, b = u_pb[0], u_peb[0]
+        gap = a["normalised_mean"] - b["normalised_mean"]
+        out.append(
+            pc.claim(
+                f"{world.name}: with an unbiased person PrefBias is no worse than PEBBLE (within 2 standard errors)",
+                gap >= -2 * _se(a, b),
+                f"normalised {a['normalised_mean']:.2f} vs {b['normalised_mean']:.2f}",
             )
         )
     return out

@@ -7,15 +7,10 @@ each shaped like the deterministic MLP parameters of :mod:`~mindgap.models.mlp` 
 posterior mean *is* an MLP, and a prior may be centred on any MLP of the same
 architecture (a random initialisation, or a learned dynamics model f_ψ).
 
-Two ways to evaluate a Bayesian MLP on a batch:
-
-* :func:`bnn_local` — the local reparameterisation trick (Kingma, Salimans & Welling 2015):
-  the pre-activations ``x W + b`` of a layer are Gaussian given ``x``, with mean
-  ``x μ_W + μ_b`` and variance ``x² σ_W² + σ_b²``, so they are sampled directly, with
-  independent noise for every row of the batch. Lower-variance gradients, no weight matrix
-  per example.
-* :func:`sample_params` + :func:`~mindgap.models.mlp.mlp` — one draw of all weights shared by
-  the whole batch: a consistent function sample (used for posterior predictive samples).
+A Bayesian MLP is evaluated on one draw of all its weights, :func:`sample_params` +
+:func:`~mindgap.models.mlp.mlp`: a consistent function sample. PrefBias draws one per
+preference (:func:`~mindgap.models.prefbias_nets.draw_per_pair`), so that every step of a
+compared pair sees the same function, as the likelihood p(d | w, φ) of Eq. 3.3 requires.
 
 The KL divergence to a factorised Gaussian prior ``N(m_i, s²)`` is in closed form,
 ``Σ_i log(s/σ_i) + (σ_i² + (μ_i − m_i)²) / (2 s²) − ½`` (:func:`kl_divergence`).
@@ -26,9 +21,7 @@ and the two Gaussian formulas above are a few lines each.
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections.abc import Callable
 from typing import NamedTuple
 
 import jax
@@ -86,34 +79,4 @@ def sample_params(post: Gaussian, key: jax.Array) -> Params:
     """One draw θ = μ + σ ε of all parameters, ε ~ N(0, I)."""
     mu, unravel = ravel_pytree(post.mean)
     sigma = jax.nn.softplus(ravel_pytree(post.rho)[0])
-    return unravel(mu + sigma * jax.random.normal(key, mu.shape, mu.dtype))  # one draw: see bnn_local
-
-
-def dense_moments(mean: tuple, sigma: tuple, x: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Mean and variance of the pre-activations ``x W + b`` under q, given ``x [..., in]``.
-
-    Returns:
-        (γ = x μ_W + μ_b, δ = x² σ_W² + σ_b²), each [..., out].
-    """
-    (mw, mb), (sw, sb) = mean, sigma
-    return x @ mw + mb, jnp.square(x) @ jnp.square(sw) + jnp.square(sb)
-
-
-def bnn_local(post: Gaussian, x: jax.Array, key: jax.Array, activation: Callable = jax.nn.relu) -> jax.Array:
-    """A sample of the Bayesian MLP's output with the local reparameterisation trick.
-
-    Each layer's pre-activations are drawn as ``γ + √δ ε`` (:func:`dense_moments`), with
-    independent ε for every row of ``x [..., in]`` — every example sees its own weights.
-    No activation after the last layer. Returns [..., out].
-    """
-    widths = [b.shape[-1] for _, b in post.mean]
-    rows = math.prod(x.shape[:-1])
-    # one draw for all layers: each random-number op adds noticeably to the compile time on CPU
-    eps = jax.random.normal(key, (rows * sum(widths),), x.dtype)
-    ends = list(itertools.accumulate(w * rows for w in widths))
-    for i, (mean, sd) in enumerate(zip(post.mean, stddev(post))):
-        gamma, delta = dense_moments(mean, sd, x)
-        x = gamma + jnp.sqrt(delta) * eps[ends[i] - widths[i] * rows : ends[i]].reshape(gamma.shape)
-        if i < len(post.mean) - 1:
-            x = activation(x)
-    return x
+    return unravel(mu + sigma * jax.random.normal(key, mu.shape, mu.dtype))

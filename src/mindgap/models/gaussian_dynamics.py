@@ -140,10 +140,20 @@ def with_stay(raw: jax.Array, obs: jax.Array, next_obs: jax.Array, log_move: jax
     return jnp.where(stay, jax.nn.log_sigmoid(logit), jax.nn.log_sigmoid(-logit) + log_move)
 
 
-def next_state_log_prob(raw: jax.Array, norm: Norm, obs: jax.Array, next_obs: jax.Array, min_std: float) -> jax.Array:
+def next_state_log_prob(
+    raw: jax.Array, norm: Norm, obs: jax.Array, next_obs: jax.Array, min_std: float, log_unit=0.0
+) -> jax.Array:
     """log f(s' | s, a) from a network's output ``raw``: [..., ·] → [...]; the Gaussian's log
-    density of :func:`log_density`, through :func:`with_stay`."""
-    return with_stay(raw, obs, next_obs, log_density(*gaussian_head(raw, norm, obs, min_std), next_obs))
+    density of :func:`log_density`, through :func:`with_stay`.
+
+    ``log_unit`` = Σ_i log c_i, with ``c_i`` the world's units per observation unit along
+    axis i (:meth:`~mindgap.envs.interface.World.obs_units`): a density per observation
+    unit^d is ``Π c_i`` times the density per world unit^d, so subtracting ``log_unit`` from
+    a move's log density states it in the world's units, those of the person's log T_H. A
+    stay is a probability and has no unit. 0 keeps observation units.
+    """
+    log_move = log_density(*gaussian_head(raw, norm, obs, min_std), next_obs) - log_unit
+    return with_stay(raw, obs, next_obs, log_move)
 
 
 def predict(model: DynamicsModel, obs: jax.Array, act: jax.Array, min_std: float) -> tuple[jax.Array, jax.Array]:
@@ -151,10 +161,10 @@ def predict(model: DynamicsModel, obs: jax.Array, act: jax.Array, min_std: float
     return gaussian_head(mlp(model.params, normalise_input(model.norm, obs, act)), model.norm, obs, min_std)
 
 
-def dynamics_log_prob(model: DynamicsModel, obs, act, next_obs, min_std: float) -> jax.Array:
-    """log f_ψ(s' | s, a) (:func:`next_state_log_prob`): [..., d] → [...]."""
+def dynamics_log_prob(model: DynamicsModel, obs, act, next_obs, min_std: float, log_unit=0.0) -> jax.Array:
+    """log f_ψ(s' | s, a) (:func:`next_state_log_prob`, in the units ``log_unit`` says): [..., d] → [...]."""
     raw = mlp(model.params, normalise_input(model.norm, obs, act))
-    return next_state_log_prob(raw, model.norm, obs, next_obs, min_std)
+    return next_state_log_prob(raw, model.norm, obs, next_obs, min_std, log_unit)
 
 
 def dynamics_init(

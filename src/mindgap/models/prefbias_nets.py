@@ -1,9 +1,9 @@
 """PrefBias's two Bayesian networks: the reward r_w(s, a) and the person's belief f_φ(s' | s, a) (§3.3.3.1).
 
 * **Reward** r_w: a Bayesian MLP (s, a) → ℝ, soft-bounded as ``B · tanh(x / B)`` with
-  ``B =`` :data:`REWARD_BOUND` — linear over the range a step's reward and log-density
-  differences take, but never so large that one unexplored corner dominates the agent's
-  returns.
+  ``B =`` :data:`~mindgap.models.reward_ensemble.REWARD_BOUND`, the bound of PEBBLE's
+  ensemble too (:func:`~mindgap.models.reward_ensemble.soft_bound`), so the two methods
+  are compared on equal terms.
 * **Absorbing states** (Kostrikov et al. 2019, as the engine's reward ensemble,
   :mod:`~mindgap.models.reward_ensemble`): r_w also holds a reward ``r_abs(s_T)`` for the
   absorbing state an episode enters at its terminal state s_T, a Bayesian linear head on
@@ -24,9 +24,20 @@ have; the scale floor (``min_std``) keeps the density of such steps finite. With
 moving at all (:func:`~mindgap.models.gaussian_dynamics.with_stay`), and such steps are
 scored by it instead.
 
-Each network is evaluated either with the local reparameterisation trick (a sample per
-transition, for the ELBO) or with fixed parameters (the posterior mean, or one draw of all
-weights from :func:`~mindgap.models.bayes.sample_params`).
+Each network is evaluated with fixed parameters: the posterior mean, or one draw of all
+weights from :func:`~mindgap.models.bayes.sample_params` — for the ELBO, one draw per
+preference, shared by all 2×L steps of its two segments (:func:`draw_per_pair`), so that
+the Monte Carlo estimate is of E_q log p(d | w, φ) as Eq. 3.3 writes it. (The local
+reparameterisation trick, a fresh draw per transition, estimates a different objective:
+each step of one segment would see another reward function.)
+
+**Units.** f_φ reads and writes observations; the person's log T_H is a density in the world's
+own units (cells on the terrain worlds). ``log_unit`` (Σ log of the world's units per
+observation unit, :meth:`~mindgap.envs.interface.World.obs_units`) states f_φ's density of a
+move in the world's units (:func:`~mindgap.models.gaussian_dynamics.next_state_log_prob`), so
+that the person's own belief is a member of f_φ's family with the same score. Without it a
+move is scored Σ log c_i nats higher against a stay than the person scores it (3.2 nats on
+the 14×7-cell nav1-v1).
 """
 
 from __future__ import annotations
@@ -36,13 +47,10 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .bayes import Gaussian, bnn_local, stddev
-from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, next_state_log_prob, normalise_input, predict
+from .bayes import Gaussian, sample_params
+from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, predict
 from .mlp import Params, init_mlp, mlp
-from .reward_ensemble import absorbing_features, rbf_count
-
-REWARD_BOUND = 10.0
-"""Soft bound B of the learned reward per step."""
+from .reward_ensemble import absorbing_features, rbf_count, soft_bound
 
 
 def reward_sizes(obs_dim: int, act_dim: int, hidden: tuple[int, ...]) -> tuple[int, ...]:
@@ -69,19 +77,9 @@ def _net(params) -> Params:
     return params.net if isinstance(params, RewardWeights) else params
 
 
-def _bound(raw: jax.Array) -> jax.Array:
-    return REWARD_BOUND * jnp.tanh(raw / REWARD_BOUND)
-
-
 def reward_value(params, obs: jax.Array, act: jax.Array) -> jax.Array:
     """r_w(s, a) for fixed weights (:class:`RewardWeights` or the MLP's alone): [..., d], [..., a] → [...]."""
-    return _bound(mlp(_net(params), jnp.concatenate([obs, act], -1))[..., 0])
-
-
-def reward_local(post: Gaussian, obs: jax.Array, act: jax.Array, key: jax.Array) -> jax.Array:
-    """A draw of r_w(s, a), w ~ q(w), by local reparameterisation (one draw per row): [...]."""
-    net = Gaussian(_net(post.mean), _net(post.rho))
-    return _bound(bnn_local(net, jnp.concatenate([obs, act], -1), key)[..., 0])
+    return soft_bound(mlp(_net(params), jnp.concatenate([obs, act], -1))[..., 0])
 
 
 def _head_size(params) -> int:
@@ -97,21 +95,7 @@ def absorbing_value(params, terminal_obs: jax.Array) -> jax.Array:
     m = _head_size(params)
     if m == 0:
         return jnp.zeros(terminal_obs.shape[:-1])
-    return _bound(absorbing_features(terminal_obs, m) @ params.absorb)
-
-
-def absorbing_local(post: Gaussian, terminal_obs: jax.Array, key: jax.Array) -> jax.Array:
-    """A draw of r_abs(s_T), w ~ q(w), by local reparameterisation: ``φ·μ + √(φ²·σ²) ε``, one ε per row: [...]."""
-    m = _head_size(post.mean)
-    if m == 0:
-        return jnp.zeros(terminal_obs.shape[:-1])
-    phi = absorbing_features(terminal_obs, m)
-    mean, var = phi @ post.mean.absorb, jnp.square(phi) @ jnp.square(stddev(post).absorb)
-    # var is exactly 0 where s_T lies beyond every feature's support (observations outside [−1, 1]):
-    # sqrt's gradient there is infinite, so take it only where var > 0 (the draw is the mean elsewhere)
-    live = var > 0
-    sd = jnp.where(live, jnp.sqrt(jnp.where(live, var, 1.0)), 0.0)
-    return _bound(mean + sd * jax.random.normal(key, mean.shape, mean.dtype))
+    return soft_bound(absorbing_features(terminal_obs, m) @ params.absorb)
 
 
 def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
@@ -129,12 +113,13 @@ def belief_predict(params: Params, norm: Norm, obs: jax.Array, act: jax.Array, m
     return predict(DynamicsModel(params, norm), obs, act, min_std)
 
 
-def belief_log_prob(params: Params, norm: Norm, obs, act, next_obs, min_std: float) -> jax.Array:
-    """log f_φ(s' | s, a) with fixed weights (with a stay head, the mixture's): [...]."""
-    return dynamics_log_prob(DynamicsModel(params, norm), obs, act, next_obs, min_std)
+def belief_log_prob(params: Params, norm: Norm, obs, act, next_obs, min_std: float, log_unit=0.0) -> jax.Array:
+    """log f_φ(s' | s, a) with fixed weights (with a stay head, the mixture's), a move's density
+    in the units ``log_unit`` says (module docstring, "Units"): [...]."""
+    return dynamics_log_prob(DynamicsModel(params, norm), obs, act, next_obs, min_std, log_unit)
 
 
-def belief_log_prob_local(post: Gaussian, norm: Norm, obs, act, next_obs, key: jax.Array, min_std: float):
-    """A draw of log f_φ(s' | s, a), φ ~ q(φ), by local reparameterisation (one draw per row): [...]."""
-    raw = bnn_local(post, normalise_input(norm, obs, act), key)
-    return next_state_log_prob(raw, norm, obs, next_obs, min_std)
+def draw_per_pair(post: Gaussian, key: jax.Array, pairs: int):
+    """``pairs`` independent draws of all weights from q (:func:`~mindgap.models.bayes.sample_params`),
+    stacked along a leading axis: one function per preference."""
+    return jax.vmap(lambda k: sample_params(post, k))(jax.random.split(key, pairs))

@@ -1,16 +1,17 @@
 """An ensemble of reward networks learned from preferences (Eq. 3.1; Christiano et al. 2017, PEBBLE).
 
-Each member maps (s, a) to a reward in (−1, 1) (tanh output, as in PEBBLE); a segment's
+Each member maps (s, a) to a reward in (−B, B), ``B·tanh(x/B)`` with ``B =`` :data:`REWARD_BOUND`
+(:func:`soft_bound`; PEBBLE's tanh output scaled); a segment's
 return is the masked sum over its steps, and the members are trained with the
 Bradley–Terry cross-entropy ``−[y log σ(R̂₁ − R̂₂) + (1 − y) log σ(R̂₂ − R̂₁)]`` (labels
 y ∈ {0, ½, 1}), each on its own minibatches. The agent optimises the members' mean.
 
 With absorbing states (``reward_init(..., absorbing=...)``; Kostrikov et al. 2019,
-"Discriminator-Actor-Critic") each member also learns a reward ``r_abs`` (tanh-squashed)
+"Discriminator-Actor-Critic") each member also learns a reward ``r_abs`` (bounded alike)
 for every step after a terminal transition, and a segment's return is
 ``Σ mask·r(s, a) + Σ absorbed·r_abs`` (:class:`~mindgap.data.segments.AbsorbingSegments`).
 Why: when reaching the goal ends the episode, a segment that gets there is otherwise
-shorter than one that hovers nearby, and with rewards bounded in (−1, 1) near the goal
+shorter than one that hovers nearby, and with rewards bounded near the goal
 the hovering segment can only score higher — the learned reward then teaches the agent
 never to arrive (termination bias). With absorbing steps every segment has the same
 length and the model learns what being done is worth; the agent's critic values the
@@ -28,6 +29,15 @@ terminal states no segment has reached yet: an MLP head, tried first, carried th
 −1 over to a goal that some seeds had not yet found, and those seeds then avoided it for
 good (d1: 2 of 5 seeds solved).
 Without absorbing states the parameters are the plain MLP stack, as before.
+
+**The bound.** Every learned reward in mindgap, this ensemble's (PEBBLE, DRLHP, EPS's u_H) and
+PrefBias's r_w (:mod:`~mindgap.models.prefbias_nets`), is soft-bounded by the same
+:func:`soft_bound`, so that methods are compared on equal terms. B = 10 rather than PEBBLE's 1:
+with a person who answers by Bradley–Terry with a finite β (Eq. 3.4) the score differences
+are identified on their own scale, in nats, and a biased person's per-step score
+r_H + log T_H ranges over several nats (a precise step under a belief with σ = 0.05 cells is
+worth about +3); a bound of 1 cannot represent it, and where a learned reward sits at its
+bound is then decided by the bound, not the answers (docs/identifiability.md).
 """
 
 from __future__ import annotations
@@ -72,13 +82,22 @@ ABSORBING_STATES = ("terminal", "single")
 class AbsorbingParams(NamedTuple):
     """Reward parameters with absorbing states: ``net`` the members' MLP stack, ``absorb`` their absorbing heads.
 
-    ``absorb [E, M]`` are the weights of ``r_abs(s_T) = tanh(φ(s_T) · w)`` on the features
+    ``absorb [E, M]`` are the weights of ``r_abs(s_T) = B·tanh(φ(s_T) · w / B)`` on the features
     φ of :func:`absorbing_features`: ``M = 1`` (``single``) is a constant feature, one learned
     constant per member; otherwise radial basis features of the terminal state.
     """
 
     net: Params
     absorb: jax.Array
+
+
+REWARD_BOUND = 10.0
+"""B, the soft bound of every learned reward per step (module docstring, "The bound")."""
+
+
+def soft_bound(raw: jax.Array) -> jax.Array:
+    """``B·tanh(raw / B)``, B = :data:`REWARD_BOUND`: linear near 0 (slope 1), bounded by ±B."""
+    return REWARD_BOUND * jnp.tanh(raw / REWARD_BOUND)
 
 
 RBF_PER_AXIS = 16
@@ -150,7 +169,7 @@ def _net(params) -> Params:
 def member_rewards(params: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
     """Every member's reward. obs [..., d], act [..., a] → [E, ...]."""
     x = jnp.concatenate([obs, act], axis=-1)
-    return jax.vmap(lambda p: jnp.tanh(mlp(p, x)[..., 0]))(_net(params))
+    return jax.vmap(lambda p: soft_bound(mlp(p, x)[..., 0]))(_net(params))
 
 
 def member_absorbing_rewards(params, terminal_obs: jax.Array) -> jax.Array:
@@ -161,7 +180,7 @@ def member_absorbing_rewards(params, terminal_obs: jax.Array) -> jax.Array:
     if not isinstance(params, AbsorbingParams):
         return jnp.zeros((jax.tree.leaves(params)[0].shape[0], *terminal_obs.shape[:-1]))
     phi = absorbing_features(terminal_obs, params.absorb.shape[-1])  # [..., M]
-    return jnp.tanh(jnp.moveaxis(phi @ params.absorb.T, -1, 0))
+    return soft_bound(jnp.moveaxis(phi @ params.absorb.T, -1, 0))
 
 
 def absorbing_reward(params, terminal_obs: jax.Array) -> jax.Array:
