@@ -10,10 +10,13 @@ from scipy import stats
 
 from mindgap.algorithms.eps_reward import (
     entropy_mean_from_replay,
+    environment_entropy,
     eps_reward,
     eps_reward_params,
     eps_sac_config,
+    raw_u,
     u_norm_from_replay,
+    world_reward,
 )
 from mindgap.algorithms.explicability import explicability
 from mindgap.algorithms.policy_shaping import ShapedPolicy, gaussian_product, shaped_dist, shaped_sample
@@ -115,6 +118,28 @@ def test_reshaped_reward_on_hand_made_transitions(d1):
     np.testing.assert_allclose(reward_fn(centred, obs, act, nxt), r_a + lam * (u_raw - u_mean) / u_std, rtol=1e-5)
     plain = dataclasses.replace(params, lam=jnp.float32(0.0))
     np.testing.assert_allclose(reward_fn(plain, obs, act, nxt), r_a, rtol=1e-6)
+
+
+def test_h_t_is_weighted_as_u_h_is_and_centred_by_default(d1, key):
+    """E log T_H (inside the standardised u_H) and H_T are halves of one −KL: both on u_H's scale, λ/s_H for H_T."""
+    from mindgap.algorithms import engine, eps
+    from mindgap.algorithms.eps_config import eps_config
+
+    cfg = eps_config("fast")
+    assert cfg.centre_entropy  # H_T's unit-dependent constant removed, as u_H's mean is
+    model, _, _ = eps._init(key, d1.env, cfg)
+    model = model._replace(h_shift=jnp.float32(-2.0), u_norm=jnp.array([0.3, 0.8], jnp.float32))
+    params = eps._reward_params(model, engine.WorldArgs(d1.params, d1.obs_units(), None), d1.env, cfg)
+    assert float(params.h_weight) == pytest.approx(1.0 / cfg.nats_per_unit)
+    obs = jnp.stack([_obs(d1, (2.5, 2.5)), _obs(d1, (4.5, 1.5))])
+    act, nxt = jnp.zeros((2, 2)), obs
+    r_a = world_reward(params, obs, act, nxt)
+    u = (raw_u(params.u_params, obs, act, nxt) - 0.3) / 0.8
+    h = environment_entropy(params, obs, act)  # H_T − h_shift, in cells
+    expect = r_a + cfg.lam * (u + h / cfg.nats_per_unit)
+    np.testing.assert_allclose(eps_reward(params, obs, act, nxt), expect, rtol=1e-5)
+    # not λ·H_T, the weight before (which counted the entropy s_H = 7 times the belief's share)
+    assert not np.allclose(eps_reward(params, obs, act, nxt), r_a + cfg.lam * (u + h), rtol=1e-3)
 
 
 def test_normalisation_statistics_come_from_the_filled_buffer(d1):

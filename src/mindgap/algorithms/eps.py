@@ -14,12 +14,13 @@ checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
    * fit the reward ensemble u_H to all answers (line 7), standardise it over the buffer
      (§4.3.3) and relabel the whole buffer with the reshaped reward;
 
-3. in between, SAC on the reshaped reward ``r_A + λ(u_H + H_T)`` with the fixed entropy
+3. in between, SAC on the reshaped reward ``r_A + λ(u_H + H_T/s_H)`` with the fixed entropy
    coefficient α = λ·reward_scale/s_H, so that SAC's own entropy bonus is Eq. 4.6's
    policy-entropy term (line 10; :mod:`~mindgap.algorithms.eps_reward`).
 
 u_H has unit spread over the buffer, so λ weighs it against r_A the same way in every
-world. The policy entropy is weighted λ/s_H, with s_H = ``nats_per_unit`` (7) the same in
+world. The two entropies, H_T (centred over the buffer as u_H is) and the policy's, are
+weighted λ/s_H, with s_H = ``nats_per_unit`` (7) the same in
 every world: the spread, in nats, that one unit of the standardised u_H stands for
 (:mod:`~mindgap.algorithms.eps_reward`, "Scale of H_π").
 
@@ -98,6 +99,7 @@ def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig) -> EPSRe
         m.dynamics,
         jnp.asarray(cfg.dynamics.min_std, f),
         m.h_shift,
+        jnp.asarray(1.0 / cfg.nats_per_unit, f),
         jnp.asarray(cfg.lam, f),
         w.units,
         env,

@@ -46,11 +46,12 @@ class EPSConfig(Schedule):
     """Pairs drawn per query kept (score-based samplers)."""
     nats_per_unit: float = 7.0
     """s_H: the per-step spread, in nats, of the person's log T_H + log π_H that one unit of the
-    standardised u_H stands for; the policy entropy is weighted λ/s_H (α = λ·reward_scale/s_H) so
-    that u_H + H_π keeps the balance of the KL it comes from. One value for every world (docs/eps.md)."""
-    centre_entropy: bool = False
-    """Subtract H_T's mean over the buffer, as u_H is centred. Off by default, as Eq. 4.6 is
-    written (docs/eps.md)."""
+    standardised u_H stands for; the policy entropy and H_T are weighted λ/s_H (α = λ·reward_scale/s_H)
+    so that u_H + H_T + H_π keeps the balance of the KLs it comes from. One value for every world
+    (docs/eps.md)."""
+    centre_entropy: bool = True
+    """Subtract H_T's mean over the buffer, as u_H is centred: H_T's constant depends on the units
+    of the state and would act as a per-step cost or bonus (docs/eps.md)."""
 
     surrogate: str = "learned"
     """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:

@@ -20,8 +20,13 @@ which preferences cannot reveal (Bradley–Terry answers fix no scale, and the e
 rewards are bounded). Weighting H_π by λ would then make the KL-optimal policy π_H tempered
 by ``s_H`` (each action dimension ``√s_H`` times wider), so H_π is weighted ``λ / s_H``:
 ``α = λ·c / s_H`` with one fixed ``s_H`` for every world (``EPSConfig.nats_per_unit``,
-7 nats; how it was chosen: docs/eps.md). The same argument would weight H_T (the dynamics
-part of the KL) λ/s_H too; it keeps Eq. 4.6's λ (docs/eps.md).
+7 nats; how it was chosen: docs/eps.md).
+
+Scale of H_T. The same argument holds for the dynamics part of the KL: u_H's E log T_H and
+H_T together are −KL(T_A ‖ T_H) (Eq. 4.4), so H_T is weighted ``λ / s_H`` as well
+(``h_weight``): the reward's λ-term is ``λ (u_H + H_T / s_H)``, one scale for both halves of
+one KL. Weighting H_T by λ while u_H's log T_H is divided by its spread counted the entropy
+about seven times as much as the belief it is the other half of (docs/eps.md).
 
 Normalisation of u_H (§4.3.3: "we simply normalize the learned rewards"): Bradley–Terry
 fixes u_H only up to an additive constant per step and a scale tied to the person's β,
@@ -35,9 +40,10 @@ Units of H_T: a differential entropy depends on the units of s'. Here it is meas
 the world's own units, those of its exact densities log T_A, log T_H
 (:meth:`~mindgap.envs.interface.World.obs_units` converts from observation units; for the
 terrain worlds, cells: T_A models the observation in [−1, 1]², ``size/2`` cells per unit). A constant in H_T acts as
-a per-step bonus or cost, which matters in worlds whose episodes end; ``h_shift`` is
-subtracted from H_T (0 keeps Eq. 4.6 as written; :func:`entropy_mean_from_replay` gives
-the buffer mean, to centre it as u_H is centred).
+a per-step bonus or cost, which matters in worlds whose episodes end, and that constant is
+an artefact of the units; ``h_shift`` is subtracted from H_T: by default its mean over the
+buffer (:func:`entropy_mean_from_replay`, ``EPSConfig.centre_entropy``), so that H_T is
+centred as u_H is, and the λ-term is −KL up to one constant removed from both halves.
 """
 
 from __future__ import annotations
@@ -61,7 +67,7 @@ from .sac import SACConfig
 
 @partial(
     jax.tree_util.register_dataclass,
-    data_fields=["world", "u_params", "u_mean", "u_std", "dynamics", "min_std", "h_shift", "lam", "units"],
+    data_fields=["world", "u_params", "u_mean", "u_std", "dynamics", "min_std", "h_shift", "h_weight", "lam", "units"],
     meta_fields=["env"],
 )
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +82,7 @@ class EPSRewardParams:
         dynamics: T_A.
         min_std: T_A's standard-deviation floor (``DynamicsConfig.min_std``).
         h_shift: subtracted from H_T (0: Eq. 4.6 as written).
+        h_weight: the weight of H_T relative to u_H, 1/s_H (module docstring, "Scale of H_T").
         lam: λ, the reconciliation factor.
         units: [d] the world's units per observation unit, the units H_T is measured in
             (:meth:`~mindgap.envs.interface.World.obs_units`).
@@ -89,6 +96,7 @@ class EPSRewardParams:
     dynamics: DynamicsModel | None
     min_std: jax.Array
     h_shift: jax.Array
+    h_weight: jax.Array
     lam: jax.Array
     units: jax.Array
     env: Env
@@ -103,6 +111,7 @@ def eps_reward_params(
     min_std: float,
     u_norm: tuple = (0.0, 1.0),
     h_shift: float = 0.0,
+    h_weight: float = 1.0,
 ) -> EPSRewardParams:
     """Assemble :class:`EPSRewardParams` for ``world`` (scalars become float32 leaves)."""
 
@@ -117,6 +126,7 @@ def eps_reward_params(
         dynamics,
         f(min_std),
         f(h_shift),
+        f(h_weight),
         f(lam),
         world.obs_units(),
         world.env,
@@ -157,18 +167,20 @@ def environment_entropy(params: EPSRewardParams, obs, act) -> jax.Array:
     return h - params.h_shift
 
 
-def reshape(r_a: jax.Array, u_h: jax.Array, h_t: jax.Array, lam) -> jax.Array:
-    """r_A + λ (u_H + H_T): the part of Eq. 4.6 that is a reward (λ H_π is SAC's, see module docstring)."""
-    return r_a + lam * (u_h + h_t)
+def reshape(r_a: jax.Array, u_h: jax.Array, h_t: jax.Array, lam, h_weight=1.0) -> jax.Array:
+    """r_A + λ (u_H + w·H_T): the part of Eq. 4.6 that is a reward (λ H_π is SAC's, see module docstring),
+    with H_T on u_H's scale (``h_weight`` = 1/s_H, module docstring, "Scale of H_T")."""
+    return r_a + lam * (u_h + h_weight * h_t)
 
 
 def eps_reward(params: EPSRewardParams, obs: jax.Array, act: jax.Array, next_obs: jax.Array) -> jax.Array:
-    """The reward EPS stores for SAC: ``r_A + λ (u_H + H_T)`` (Eq. 4.6). obs, act, next_obs [B, ·] → [B].
+    """The reward EPS stores for SAC: ``r_A + λ (u_H + H_T / s_H)`` (Eq. 4.6). obs, act, next_obs [B, ·] → [B].
 
     A module-level function, so that ``run_chunk(..., reward_fn=eps_reward)`` compiles once.
     """
     r_a = world_reward(params, obs, act, next_obs)
-    return reshape(r_a, normalised_u(params, obs, act, next_obs), environment_entropy(params, obs, act), params.lam)
+    u_h, h_t = normalised_u(params, obs, act, next_obs), environment_entropy(params, obs, act)
+    return reshape(r_a, u_h, h_t, params.lam, params.h_weight)
 
 
 def eps_sac_config(base: SACConfig, lam: float, nats_per_unit: float) -> SACConfig:

@@ -37,8 +37,10 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--centre-entropy",
-        action="store_true",
-        help="subtract H_T's mean over the buffer (default: Eq. 4.6 as written, its constant kept)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="subtract H_T's mean over the buffer, as u_H is centred (default); --no-centre-entropy keeps "
+        "its unit-dependent constant, as Eq. 4.6 is written",
     )
     p.add_argument(
         "--surrogate",
