@@ -180,12 +180,12 @@ def test_bump_worlds_keep_the_fingerprint_they_had_before_the_slide_rule():
     tree = (world.params, world.beliefs)
     leaves = jax.tree.leaves(tree)
     kept = identity_leaves(tree)
-    assert len(leaves) - len(kept) == 4  # both tables' slide flags, the reward form, the fixed horizon
+    assert len(leaves) - len(kept) == 5  # both tables' slide flags, the reward form and distance, the fixed horizon
     assert all(any(k is leaf for leaf in leaves) for k in kept)
     assert fingerprint(tree) == "e48df9479d0359a1"  # recorded by nav2 run folders before `walls` existed
 
     slide = world.params.with_dynamics(world.params.dynamics._replace(slide=np.float64(1.0)))
-    assert len(identity_leaves(slide)) == len(jax.tree.leaves(slide)) - 2  # the two other late fields hold 0
+    assert len(identity_leaves(slide)) == len(jax.tree.leaves(slide)) - 3  # the three other late fields hold 0
     assert fingerprint(slide) != fingerprint(world.params)
     fixed = world.params._replace(fixed_horizon=np.float32(1.0))
     state_form = world.params._replace(rewards=world.params.rewards._replace(state_form=np.float32(1.0)))

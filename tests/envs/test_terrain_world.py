@@ -84,6 +84,22 @@ def test_a_state_form_reward_depends_on_where_the_step_starts_only(key):
     assert float(reward(_state(4.5, 1.5), jnp.zeros(2), _state(4.5, 1.5), params)) == -3.0  # in the pit: −1 − 2
 
 
+def test_a_state_form_distance_term_charges_the_distance_to_the_goal(key):
+    """r(s) = step − distance·Φ(s) outside the goal and the pits; a transition-form world refuses the term."""
+    spec = {**FIXED, "rewards": {**FIXED["rewards"], "distance": 0.25}}
+    params = world_from_dict(spec).params
+    far, near = _state(1.5, 1.5), _state(3.5, 2.5)
+    for s in (far, near):
+        phi = float(potential(params, s.pos))
+        assert phi > 0
+        assert float(reward(s, jnp.zeros(2), s, params)) == pytest.approx(-1.0 - 0.25 * phi, abs=1e-6)
+    assert float(reward(far, jnp.zeros(2), far, params)) < float(reward(near, jnp.zeros(2), near, params))
+    assert float(reward(_state(5.5, 1.5), jnp.zeros(2), _state(5.5, 1.5), params)) == 0.0  # in the goal
+    assert float(reward(_state(4.5, 1.5), jnp.zeros(2), _state(4.5, 1.5), params)) == -3.0  # in the pit: no Φ
+    with pytest.raises(ValueError, match="distance is a term of the state form"):
+        world_from_dict({**SPEC, "rewards": {"step": -1.0, "distance": 0.1}})
+
+
 def test_a_fixed_horizon_ends_nowhere_but_the_horizon_and_a_pit_traps(key):
     params = world_from_dict(FIXED).params
     out = step(key, _state(5.5, 2.2), jnp.asarray([0.0, -1.0]), params)  # up into the goal: the episode goes on

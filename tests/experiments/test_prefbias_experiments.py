@@ -27,7 +27,7 @@ from mindgap.experiments import prefbias_common as pc
 from mindgap.experiments import world_measures as wm
 from mindgap.models.mlp import init_mlp, init_stack
 from mindgap.models.prefbias_nets import reward_sizes
-from mindgap.planning.terrain_maps import table_noise_map
+from mindgap.planning.terrain_maps import table_noise_map, table_stay_map
 
 FINAL = {"prefbias": -5.0, "pebble": -90.0, "sac": -1.0}
 RANDOM = -100.0
@@ -81,6 +81,7 @@ def _fake_result(world, cfg, seeds, method):
             wall = np.isnan(np.asarray(table_noise_map(world.params)))
             noise = np.where(wall, np.nan, 0.1 + 0.01 * np.arange(seeds)[:, None, None])
             res["belief_noise"], res["dynamics_noise"] = noise, noise * 0.5
+            res["belief_stay"], res["dynamics_stay"] = noise * 3, noise
     else:
         params = _stack([init_stack(k, cfg.reward.members, (4, *cfg.reward.hidden, 1)) for k in keys])
         res["carry"] = SimpleNamespace(model=SimpleNamespace(params=params))
@@ -118,6 +119,7 @@ def stand_ins(monkeypatch):
     monkeypatch.setattr(pbrl, "train", fake_pbrl)
     monkeypatch.setattr(pc, "_reference", fake_reference)
     monkeypatch.setattr(pc, "learned_noise", lambda res, world, cfg: (res["belief_noise"], res["dynamics_noise"]))
+    monkeypatch.setattr(pc, "learned_stay", lambda res, world: (res["belief_stay"], res["dynamics_stay"]))
     return calls
 
 
@@ -242,9 +244,22 @@ def test_priors_fast_reports_belief_and_reward_errors(stand_ins, tmp_path, capsy
     expect = np.sqrt(np.nanmean((0.1 - person) ** 2))
     assert float(results["dynamics"]["belief_error_mean"]) == pytest.approx(expect, rel=1e-4)
     assert {c["prior"] for c in rows(out / "curves.csv")} == {"dynamics", "random", ""}
+    # nav1's person misjudges the probability of not moving (the ice holds the robot), not the noise
+    assert pc.biased_parts(load_world("nav1")) == ["stay"] and pc.biased_parts(load_world("nav1-v1")) == [
+        "noise",
+        "stay",
+    ]
+    person_stay = np.asarray(table_stay_map(load_world("nav1").belief()))
+    expect = np.sqrt(np.nanmean((0.3 - person_stay) ** 2))
+    assert float(results["dynamics"]["belief_stay_error_mean"]) == pytest.approx(expect, rel=1e-4)
     summary = json.loads((out / "summary.json").read_text())
-    assert len(summary["claims"]) == 3
-    for name in ("errors_nav1.png", "curves_nav1.png", "beliefs_nav1.png"):
+    claims = [c["text"] for c in summary["claims"]]
+    assert claims == [
+        "nav1: the dynamics prior gives the lower belief error (stay)",
+        "nav1: the dynamics prior gives the lower reward error",
+        "nav1: the dynamics prior's return is at least the random prior's",
+    ]
+    for name in ("errors_nav1.png", "curves_nav1.png", "beliefs_nav1.png", "stays_nav1.png"):
         assert (out / name).stat().st_size > 0, name
 
 

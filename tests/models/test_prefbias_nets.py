@@ -80,6 +80,36 @@ def test_table_noise_map_reads_the_belief_table():
     assert noise2[1, 5] > 2 * noise2[6, 1]
 
 
+def test_stay_maps_read_the_stay_head_and_the_table_s_exact_stay_probability(key):
+    """nav1: the person thinks the icy corridor holds the robot most steps; f_φ's stay head is read per cell."""
+    from mindgap.planning.terrain_maps import belief_stay_map, table_stay_map
+
+    nav1 = load_world("nav1")
+    grid = np.asarray(nav1.params.grid)
+    walls = grid == WALL
+    person, truth = np.asarray(table_stay_map(nav1.belief())), np.asarray(table_stay_map(nav1.params))
+    assert np.all(np.isnan(person[walls])) and not np.any(np.isnan(person[~walls]))
+    ice = grid == ICE
+    # stuck, or else bumped against a wall: P(stay) = p_stuck + (1 − p_stuck)·P(bump), and the two
+    # tables differ only in p_stuck (believed high, truly low), so P(bump) must come out the same
+    assert ice.any()
+    p_h, p_t = float(nav1.belief().dynamics.stuck[ICE]), float(nav1.params.dynamics.stuck[ICE])
+    assert p_h > p_t > 0
+    bump_person, bump_truth = (person[ice] - p_h) / (1 - p_h), (truth[ice] - p_t) / (1 - p_t)
+    np.testing.assert_allclose(bump_person, bump_truth, atol=1e-5)
+    assert np.all(bump_truth >= 0) and np.all(bump_truth < 0.5)
+    # a network with a constant stay logit l predicts sigmoid(l) at every passable cell
+    params = init_mlp(key, dynamics_sizes(2, 2, (8,), stay=True))
+    w, b = params[-1]
+    const = params[:-1] + ((w * 0, jnp.array([0.0, 0.0, 0.0, 0.0, 1.2])),)
+    norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.ones(2))
+    stay = np.asarray(belief_stay_map(const, norm, nav1.params))
+    np.testing.assert_allclose(stay[~walls], 1 / (1 + np.exp(-1.2)), rtol=1e-5)
+    assert np.all(np.isnan(stay[walls]))
+    plain = init_mlp(key, dynamics_sizes(2, 2, (8,)))  # no stay head: nothing to read
+    assert np.all(np.isnan(np.asarray(belief_stay_map(plain, norm, nav1.params))))
+
+
 def _np_features(s_t):
     """Radial basis features of terminal states, by hand: 16 × 16 bumps on [−1, 1]², height 20, cut at 2 widths."""
     axis = np.linspace(-1.0, 1.0, 16)

@@ -11,7 +11,7 @@ import hashlib
 import jax
 import numpy as np
 
-LATE_FIELDS = ("slide", "state_form", "fixed_horizon")
+LATE_FIELDS = ("slide", "state_form", "fixed_horizon", "distance")
 """Fields added to a world's params after run folders and caches already existed (the terrain
 worlds' wall rule, reward form and fixed horizon). A leaf of one of these names that holds 0, the default, is left out of the
 hash, so a world that does not use the field keeps the fingerprint it had before the field."""

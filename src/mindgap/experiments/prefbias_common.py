@@ -31,7 +31,7 @@ from ..algorithms import prefbias as prefbias_alg
 from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
 from ..models.prefbias_nets import posterior_reward
 from ..models.reward_ensemble import RewardConfig, ensemble_reward
-from ..planning.terrain_maps import noise_maps, table_noise_map
+from ..planning.terrain_maps import noise_maps, stay_maps, table_noise_map, table_stay_map
 from ._runfolder import RunFolder
 from .world_measures import (
     experiment_world,
@@ -215,6 +215,23 @@ def _reference(world, cfg: ReferenceConfig) -> dict:
     return reference_record(world, cfg.random_episodes, cfg.seed, cfg.plan_resolution, cfg.plan_rollouts)
 
 
+def learned_stay(res: dict, world) -> tuple[np.ndarray, np.ndarray]:
+    """A PrefBias run's learned belief f_φ and agent model f_ψ as stay-probability maps [seeds, H, W] (NaN on walls)."""
+    belief, agent = stay_maps(res["carry"], world.params)
+    return np.asarray(belief), np.asarray(agent)
+
+
+def biased_parts(world) -> list[str]:
+    """Which parts of the terrain table the person gets wrong: ``noise`` (of a move) and/or ``stay``
+    (the probability of not moving), compared cell by cell with the truth's."""
+    parts = []
+    for name, table in (("noise", table_noise_map), ("stay", table_stay_map)):
+        gap = np.abs(np.asarray(table(world.belief())) - np.asarray(table(world.params)))
+        if np.nanmax(gap) > 1e-3:
+            parts.append(name)
+    return parts
+
+
 def learned_noise(res: dict, world, cfg: PrefBiasLoopConfig) -> tuple[np.ndarray, np.ndarray]:
     """A PrefBias run's learned belief f_φ and agent model f_ψ as noise maps [seeds, H, W] (NaN on walls)."""
     belief, agent = noise_maps(res["carry"], world.params, cfg.prefbias.dynamics.min_std)
@@ -249,6 +266,12 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
         rec["dynamics_error"] = noise_rms_error(agent, person).tolist()
         rec["belief_map"] = nan_to_none(belief.mean(0))  # NaN on walls in every seed
         rec["dynamics_map"] = nan_to_none(agent.mean(0))
+        if job.cfg.prefbias.stay_head:  # the probability of not moving: what the redesigned worlds' person misjudges
+            person_stay = np.asarray(table_stay_map(world.belief()))
+            belief, agent = learned_stay(res, world)
+            rec["belief_stay_error"] = noise_rms_error(belief, person_stay).tolist()
+            rec["dynamics_stay_error"] = noise_rms_error(agent, person_stay).tolist()
+            rec["belief_stay_map"] = nan_to_none(belief.mean(0))
     return rec
 
 
@@ -356,7 +379,7 @@ def result_row(rec: dict, reference: dict | None, oracle: dict | None) -> dict:
         "better_route": seed_route_share(rec, reference),
         **route_means(rec["routes"]),
     }
-    for name in ("reward_error", "belief_error", "dynamics_error"):
+    for name in ("reward_error", "belief_error", "dynamics_error", "belief_stay_error", "dynamics_stay_error"):
         if rec.get(name) is not None:
             v = np.asarray(rec[name], np.float64)
             row[f"{name}_mean"], row[f"{name}_std"] = float(v.mean()), float(v.std())

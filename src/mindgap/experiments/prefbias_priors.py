@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..algorithms.prefbias_inference import BELIEF_PRIORS
-from ..planning.terrain_maps import table_noise_map
+from ..planning.terrain_maps import table_noise_map, table_stay_map
 from ..plotting.learning import save_learning_curves
 from ..plotting.terrain import save_fields
 from . import prefbias_common as pc
@@ -97,6 +97,7 @@ def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
                     world.name,
                     r["prior"],
                     pc.fmt(r.get("belief_error_mean"), r.get("belief_error_std"), 3),
+                    pc.fmt(r.get("belief_stay_error_mean"), r.get("belief_stay_error_std"), 3),
                     pc.fmt(r.get("dynamics_error_mean"), r.get("dynamics_error_std"), 3),
                     pc.fmt(r["reward_error_mean"], r["reward_error_std"], 2),
                     pc.fmt(r["return_mean"], r["return_std"]),
@@ -109,14 +110,17 @@ def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
         out / "results.csv",
         rows,
         ["method", "world", "prior", "queries", "seeds", "belief_error_mean", "belief_error_std"]
+        + ["belief_stay_error_mean", "belief_stay_error_std"]
         + ["reward_error_mean", "reward_error_std", "return_mean", "return_std"],
     )
     write_csv(out / "curves.csv", curves, ["method", "world", "queries", "prior", "seed", "step", "return"])
-    header = ["world", "prior", "belief error", "f_ψ's error", "reward error", "final return", "normalised"]
+    header = ["world", "prior", "belief error (noise)", "belief error (stay)", "f_ψ's error", "reward error"]
+    header += ["final return", "normalised"]
     table_md = (
         f"priors (Figs. 22–24): PrefBias with {cfg.queries} queries, mean ± std over {cfg.seeds} seed(s). "
-        "belief error: RMS over cells of the learned belief's noise minus the person's (cells); f_ψ's error: "
-        "the same for the agent's dynamics model; reward error: z-scored RMS (0 exact, 1.41 unrelated); "
+        "belief error (noise): RMS over cells of the learned belief's noise minus the person's (cells); "
+        "(stay): the same for the probability of not moving; f_ψ's error: the noise error of the agent's "
+        "dynamics model; reward error: z-scored RMS (0 exact, 1.41 unrelated); "
         "normalised return: 0 = random policy, 1 = SAC oracle.\n\n" + pc.markdown(header, table)
     )
     summary = {"experiment": "priors", "config": to_jsonable(cfg), "results": rows, "claims": claims}
@@ -125,17 +129,27 @@ def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
     return summary
 
 
+ERRORS = {
+    "noise": ("belief error (noise)", "belief_error_mean"),
+    "stay": ("belief error (stay)", "belief_stay_error_mean"),
+}
+"""The belief error of each part of the table a person can get wrong (:func:`~.prefbias_common.biased_parts`)."""
+
+
 def _claims(world, rows: list[dict]) -> list[dict]:
-    """Issue 6: the dynamics prior gives lower belief and reward errors and at least equal return."""
+    """Issues 6 and 25: the dynamics prior gives the lower error on what the person gets wrong (the
+    noise of a move, the probability of not moving, or both), the lower reward error, and at least
+    equal return."""
     by = {r["prior"]: r for r in rows}
     if "dynamics" not in by or "random" not in by:
         return []
     d, r = by["dynamics"], by["random"]
+    measures = [ERRORS[p] for p in pc.biased_parts(world)] if wm.has_map(world) else []
     return [
         pc.claim(
             f"{world.name}: the dynamics prior gives the lower {what}", d[key] < r[key], f"{d[key]:.3f} vs {r[key]:.3f}"
         )
-        for what, key in (("belief error", "belief_error_mean"), ("reward error", "reward_error_mean"))
+        for what, key in [*measures, ("reward error", "reward_error_mean")]
         if key in d and key in r  # belief errors need a map
     ] + [
         pc.claim(
@@ -152,6 +166,7 @@ def _figures(out: Path, world, recs: list[dict], oracle: dict | None, ref: dict 
         out / f"errors_{world.name}.png",
         [
             ("belief error (noise RMS, cells)", {k: r.get("belief_error") or [] for k, r in label.items()}),
+            ("belief error (stay RMS)", {k: r.get("belief_stay_error") or [] for k, r in label.items()}),
             ("reward error (z-scored RMS)", {k: r["reward_error"] for k, r in label.items()}),
             ("final return (true reward)", {k: r["final"] for k, r in label.items()}),
         ],
@@ -175,3 +190,10 @@ def _figures(out: Path, world, recs: list[dict], oracle: dict | None, ref: dict 
     ]
     fields += [(f"learned belief, {r['tags']['prior']} prior", pc.map_array(r["belief_map"])) for r in recs]
     save_fields(out / f"beliefs_{world.name}.png", world.params, fields, label="noise σ (cells)")
+    stays = [
+        (f"learned belief, {r['tags']['prior']} prior", r["belief_stay_map"]) for r in recs if r.get("belief_stay_map")
+    ]
+    if stays:
+        fields = [("the person's belief (table)", np.asarray(table_stay_map(world.belief())))]
+        fields += [(name, pc.map_array(m)) for name, m in stays]
+        save_fields(out / f"stays_{world.name}.png", world.params, fields, label="P(not moving)")

@@ -258,9 +258,11 @@ def route_name(world) -> str:
 
 
 def _passable_grid(params, k: int = 3) -> np.ndarray:
-    """[N, 2] positions, k×k per cell that is neither wall nor goal nor pit (where episodes run)."""
+    """[N, 2] positions, k×k per cell where episodes run: every cell but walls; with episodes that end
+    at the goal or a pit (not a fixed horizon), not those either."""
     grid = np.asarray(params.grid)
-    rows, cols = np.nonzero((grid != WALL) & (grid != GOAL) & (grid != PIT))
+    ends = float(params.fixed_horizon) < 0.5
+    rows, cols = np.nonzero((grid != WALL) & ~(ends & ((grid == GOAL) | (grid == PIT))))
     off = (np.arange(k) + 0.5) / k
     ox, oy = np.meshgrid(off, off)
     pts = np.stack([cols[:, None] + ox.ravel(), rows[:, None] + oy.ravel()], -1)

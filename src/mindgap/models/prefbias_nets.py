@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 
 from .bayes import Gaussian, sample_params
-from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, predict
+from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, has_stay_head, normalise_input, predict
 from .mlp import Params, init_mlp, mlp
 from .reward_ensemble import absorbing_features, rbf_count, soft_bound
 
@@ -117,6 +117,14 @@ def belief_log_prob(params: Params, norm: Norm, obs, act, next_obs, min_std: flo
     """log f_φ(s' | s, a) with fixed weights (with a stay head, the mixture's), a move's density
     in the units ``log_unit`` says (module docstring, "Units"): [...]."""
     return dynamics_log_prob(DynamicsModel(params, norm), obs, act, next_obs, min_std, log_unit)
+
+
+def belief_stay_prob(params: Params, norm: Norm, obs, act) -> jax.Array:
+    """f_φ's probability of not moving at all (the stay head; NaN for a network without one): [...]."""
+    raw = mlp(params, normalise_input(norm, obs, act))
+    if not has_stay_head(raw, obs):
+        return jnp.full(raw.shape[:-1], jnp.nan)
+    return jax.nn.sigmoid(raw[..., -1])
 
 
 def draw_per_pair(post: Gaussian, key: jax.Array, pairs: int):

@@ -1,8 +1,11 @@
-"""Terrain maps of learned and believed dynamics: each cell's noise, for drawing beliefs on a map.
+"""Terrain maps of learned and believed dynamics: each cell's noise and stay probability.
 
 PrefBias learns a belief f_φ over observations; these read it (and a terrain dynamics table)
 out cell by cell, in the world's own units, so a learned belief can be drawn next to the
-person's and its error measured (the belief error of Figs. 22–24).
+person's and its error measured (the belief error of Figs. 22–24). Two parts of a belief
+are read: the noise of a move (:func:`belief_noise_map`, :func:`table_noise_map`) and the
+probability of not moving at all, stuck or bumped (:func:`belief_stay_map`,
+:func:`table_stay_map`; the part the redesigned nav worlds' person gets wrong).
 """
 
 from __future__ import annotations
@@ -12,10 +15,10 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
-from ..envs.terrain.dynamics import is_wall, move_model
+from ..envs.terrain.dynamics import is_wall, log_prob_pos, move_model
 from ..models.gaussian_dynamics import Norm
 from ..models.mlp import Params
-from ..models.prefbias_nets import belief_predict
+from ..models.prefbias_nets import belief_predict, belief_stay_prob
 
 CROSS_ACTIONS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 """The actions :func:`belief_noise_map` averages over: full pushes along each axis."""
@@ -64,6 +67,38 @@ def table_noise_map(world_params) -> jax.Array:
     return jnp.where(is_wall(world_params, rows, cols), jnp.nan, sigma)
 
 
+def _cell_inputs(world_params, actions):
+    """Observations and actions at every cell centre × action: ([H, W, n, 2], [H, W, n, 2]), and positions [H, W, 2]."""
+    h, w = world_params.grid.shape
+    actions = jnp.asarray(CROSS_ACTIONS if actions is None else actions, jnp.float32)
+    _, _, pos = _cell_centres(world_params)
+    obs = 2.0 * pos / jnp.array([w, h], jnp.float32) - 1.0  # as envs.terrain.observe
+    obs = jnp.broadcast_to(obs[:, :, None], (h, w, actions.shape[0], 2))
+    return obs, jnp.broadcast_to(actions, obs.shape), pos
+
+
+def belief_stay_map(params: Params, norm: Norm, world_params, actions: jax.Array | None = None) -> jax.Array:
+    """f_φ's probability of not moving at each cell centre, averaged over ``actions`` (default
+    :data:`CROSS_ACTIONS`): [H, W], NaN on walls and everywhere for a network without a stay head."""
+    rows, cols, _ = _cell_centres(world_params)
+    obs, act, _ = _cell_inputs(world_params, actions)
+    stay = belief_stay_prob(params, norm, obs, act).mean(-1)
+    return jnp.where(is_wall(world_params, rows, cols), jnp.nan, stay)
+
+
+def table_stay_map(world_params, actions: jax.Array | None = None) -> jax.Array:
+    """The exact probability of not moving (stuck, or bumped against a wall) a dynamics table gives each
+    cell centre, averaged over ``actions`` as :func:`belief_stay_map`: [H, W], NaN on walls."""
+    rows, cols, _ = _cell_centres(world_params)
+    _, act, pos = _cell_inputs(world_params, actions)
+
+    def at(p, acts):
+        return jnp.mean(jax.vmap(lambda a: jnp.exp(log_prob_pos(world_params, p, a, p)))(acts))
+
+    stay = jax.vmap(jax.vmap(at))(pos, act)
+    return jnp.where(is_wall(world_params, rows, cols), jnp.nan, stay)
+
+
 @partial(jax.jit, static_argnames=("min_std",))
 def noise_maps(carry, world_params, min_std: float):
     """Every seed's learned belief f_φ (posterior mean) and agent model f_ψ as :func:`belief_noise_map` s.
@@ -79,6 +114,18 @@ def noise_maps(carry, world_params, min_std: float):
     def one(c):
         belief = belief_noise_map(c.model.posterior.belief.mean, c.model.posterior.norm, world_params, min_std)
         agent = belief_noise_map(c.model.dynamics.params, c.model.dynamics.norm, world_params, min_std)
+        return belief, agent
+
+    return jax.vmap(one)(carry)
+
+
+@jax.jit
+def stay_maps(carry, world_params):
+    """Every seed's learned belief f_φ and agent model f_ψ as :func:`belief_stay_map` s: ([seeds, H, W], [seeds, H, W])."""
+
+    def one(c):
+        belief = belief_stay_map(c.model.posterior.belief.mean, c.model.posterior.norm, world_params)
+        agent = belief_stay_map(c.model.dynamics.params, c.model.dynamics.norm, world_params)
         return belief, agent
 
     return jax.vmap(one)(carry)

@@ -15,7 +15,7 @@ A world file::
     '''
 
     [rewards]                     # r = step + progress·(Φ(s) − Φ(s')) + goal/pit on entry
-    form = "transition"           # or "state": r(s) = step + goal·[s in goal] + pit·[s in pit]
+    form = "transition"           # or "state": r(s) = step − distance·Φ(s) + goal·[s in goal] + pit·[s in pit]
     goal = 10.0
     pit = -10.0
     step = -1.0
@@ -92,6 +92,8 @@ def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
         raise ValueError(f"{where}[rewards] form must be one of {', '.join(REWARD_FORMS)}, got {form!r}")
     if form == "state" and float(rw.get("progress", 0.0)) != 0.0:
         raise ValueError(f"{where}[rewards] progress depends on the next state; a state-form reward cannot have it")
+    if form != "state" and float(rw.get("distance", 0.0)) != 0.0:
+        raise ValueError(f'{where}[rewards] distance is a term of the state form (form = "state"); use progress')
     ends = spec.get("episode_ends", True)
     if not isinstance(ends, bool):
         raise ValueError(f"{where}episode_ends must be true or false, got {ends!r}")
@@ -101,6 +103,7 @@ def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
         step=float(rw.get("step", 0.0)),
         progress=float(rw.get("progress", 0.0)),
         state_form=float(form == "state"),
+        distance=float(rw.get("distance", 0.0)),
     )
     try:
         true = Dynamics.from_dict(spec.get("dynamics", {}))

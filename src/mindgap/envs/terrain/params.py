@@ -113,9 +113,11 @@ class Rewards(NamedTuple):
       Φ is the geodesic distance to the goal (cells), so ``progress`` rewards how far a step
       brings the agent toward the goal (ch. 4 worlds). Φ is 0 in the goal and in pits, which
       makes the term potential-based shaping: it never changes which episodes are better.
-    * state form (``state_form`` = 1): r(s) = step + goal·[s in the goal] + pit·[s in a pit], a
-      function of where the step starts only. A learner's r_w(s, a) can represent it, so a
-      person's preferences separate it from their belief (docs/identifiability.md).
+    * state form (``state_form`` = 1): r(s) = step − distance·Φ(s) + goal·[s in the goal] +
+      pit·[s in a pit] (Φ taken as 0 in the goal and in pits), a function of where the step starts only. A learner's r_w(s, a) can
+      represent it, so a person's preferences separate it from their belief
+      (docs/identifiability.md). ``distance`` makes it dense: every step closer to the goal is
+      better, so segments that never reach the goal still differ in reward.
     """
 
     goal: jax.Array
@@ -123,6 +125,7 @@ class Rewards(NamedTuple):
     step: jax.Array
     progress: jax.Array
     state_form: jax.Array = np.float32(0.0)
+    distance: jax.Array = np.float32(0.0)
 
 
 class TerrainParams(NamedTuple):

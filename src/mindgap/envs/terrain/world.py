@@ -57,6 +57,9 @@ def reward(state: TerrainState, action: jax.Array, next_state: TerrainState, par
     rw = params.rewards
     here = terrain_at(params, state.pos)
     r_state = rw.step + jnp.where(here == GOAL, rw.goal, 0.0) + jnp.where(here == PIT, rw.pit, 0.0)
+    # Φ counts outside the goal and the pits only (a pit's own term is its cost; deep inside a wide
+    # pit no passable cell is near and Φ is not defined)
+    r_state = r_state - rw.distance * jnp.where((here == GOAL) | (here == PIT), 0.0, potential(params, state.pos))
     terr = terrain_at(params, next_state.pos)
     # Φ = 0 in every terminal cell: over a whole episode the progress terms then add up to
     # Φ(start) whichever way it ends, so they shape learning without changing which
