@@ -98,3 +98,24 @@ def test_the_command_prints_writes_and_refuses(tmp_path, capsys):
     assert "form must be one of transition, state" in err and err.count("\n") == 1
     assert main(["design", "check", "examples/point_mass.py:make_world"]) == 2
     assert "not a terrain world" in capsys.readouterr().err
+
+
+def test_the_command_fits_the_belief_by_maximum_likelihood(tmp_path, capsys):
+    path = tmp_path / "corridors.toml"
+    path.write_text(
+        'name = "corridors"\nhorizon = 40\nepisode_ends = false\nlayout = """\n' + LAYOUT + '\n"""\n'
+        '[rewards]\nform = "state"\nstep = -1.0\ngoal = 1.0\n[dynamics]\nice = { stuck = 0.1 }\n'
+        "sand = { speed = 0.5 }\n[beliefs.human]\nice = { stuck = 0.7 }\n"
+    )
+    out = tmp_path / "check"
+    assert main(["design", "check", str(path), "--resolution", "2", "--fit", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "maximum-likelihood fit to 800 simulated answers (β = 1)" in text
+    (line,) = [ln for ln in text.splitlines() if ln.strip().startswith("ice.stuck") and "recovered" in ln]
+    assert "0.100 →  0.700" in line
+    fit = json.loads((out / "corridors.json").read_text())["fit"]
+    (stuck,) = [p for p in fit["parameters"] if p["name"] == "ice.stuck"]
+    assert stuck["verdict"] == "recovered" and stuck["z_belief"] <= 3 <= stuck["z_truth"]
+    assert fit["profile"]["name"] == "ice.stuck" and len(fit["profile"]["grid"]) == 10
+    assert main(["design", "check", str(path), "--resolution", "2", "--fit", "--beta", "inf"]) == 1
+    assert "maximum-likelihood fit: not run: deterministic answers" in capsys.readouterr().out

@@ -35,9 +35,10 @@ def _segments(world, starts, action, length=6, key=None):
 
 @pytest.fixture(scope="module")
 def nav1():
-    """nav1 with SPEC's sparse reward (−1 per step, no progress term), so scores are easy to state."""
+    """nav1 with a sparse reward (−1 per step, no progress or distance term), so scores are easy to state."""
     w = load_world("nav1")
-    rewards = w.params.rewards._replace(progress=jnp.zeros((), jnp.float32))
+    zero = jnp.zeros((), jnp.float32)
+    rewards = w.params.rewards._replace(progress=zero, distance=zero)
     return dataclasses.replace(w, params=w.params._replace(rewards=rewards))
 
 
