@@ -79,13 +79,19 @@ def test_finite_horizon_values_on_a_corridor_match_a_hand_count():
     assert forward(d, world.params, "uniform", d.rewards).ret < out.ret - 10
 
 
-def test_the_command_prints_writes_and_refuses(tmp_path, capsys):
+def _corridors_file(tmp_path):
+    """The corridors world as a world file: ice truly sticks 1 step in 10, the person believes 7."""
     path = tmp_path / "corridors.toml"
     path.write_text(
         'name = "corridors"\nhorizon = 40\nepisode_ends = false\nlayout = """\n' + LAYOUT + '\n"""\n'
         '[rewards]\nform = "state"\nstep = -1.0\ngoal = 1.0\n[dynamics]\nice = { stuck = 0.1 }\n'
         "sand = { speed = 0.5 }\n[beliefs.human]\nice = { stuck = 0.7 }\n"
     )
+    return path
+
+
+def test_the_command_prints_writes_and_refuses(tmp_path, capsys):
+    path = _corridors_file(tmp_path)
     out = tmp_path / "check"
     assert main(["design", "check", str(path), "--resolution", "2", "--out", str(out)]) == 0
     assert "verdict: VALID test of PrefBias" in capsys.readouterr().out
@@ -101,12 +107,7 @@ def test_the_command_prints_writes_and_refuses(tmp_path, capsys):
 
 
 def test_the_command_fits_the_belief_by_maximum_likelihood(tmp_path, capsys):
-    path = tmp_path / "corridors.toml"
-    path.write_text(
-        'name = "corridors"\nhorizon = 40\nepisode_ends = false\nlayout = """\n' + LAYOUT + '\n"""\n'
-        '[rewards]\nform = "state"\nstep = -1.0\ngoal = 1.0\n[dynamics]\nice = { stuck = 0.1 }\n'
-        "sand = { speed = 0.5 }\n[beliefs.human]\nice = { stuck = 0.7 }\n"
-    )
+    path = _corridors_file(tmp_path)
     out = tmp_path / "check"
     assert main(["design", "check", str(path), "--resolution", "2", "--fit", "--out", str(out)]) == 0
     text = capsys.readouterr().out
