@@ -17,7 +17,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mindgap import rng
 from mindgap.algorithms.prefbias_inference import PrefBiasConfig, fit, prefbias_init
 from mindgap.data.prefs import PrefData
 from mindgap.data.segments import Segments
@@ -25,9 +24,7 @@ from mindgap.envs.terrain import load_world
 from mindgap.envs.terrain.layout import ICE
 from mindgap.models.gaussian_dynamics import DynamicsConfig, dynamics_init, fit_norm, train_dynamics
 from mindgap.planning.belief_fit import simulate_queries
-from mindgap.planning.design_check import ACTIONS, DesignConfig, expected_log_t
-from mindgap.planning.finite_horizon import backward
-from mindgap.planning.terrain import discretise
+from mindgap.planning.design_check import ACTIONS, DesignConfig, plan_policies
 from mindgap.planning.terrain_maps import belief_noise_map, belief_stay_map
 
 VARIANTS = {
@@ -48,11 +45,8 @@ def flat(x):
 def main(names):
     world, cfg = load_world("nav1"), DesignConfig()
     belief, floor = world.belief(), cfg.teacher.log_t_floor
-    d = discretise(world.params, cfg.n, ACTIONS)
-    k_h, _ = jax.random.split(rng.key(0))
-    log_h = expected_log_t(k_h, world.params, belief, d.positions, jnp.asarray(ACTIONS), cfg.draws, floor)
-    log_h = jnp.where(~d.terminal[:, None], log_h, 0.0)
-    behaviour = [np.asarray(backward(d, r, world.horizon)[1]) for r in (d.rewards, d.rewards + log_h)]
+    d, _, policies = plan_policies(world, belief, cfg)
+    behaviour = [np.asarray(policies["optimal"]), np.asarray(policies["unaware"])]
     q = simulate_queries(
         jax.random.key(1), world.params, belief, behaviour, ACTIONS, d.index, cfg.n,
         beta=1.0, budget=800, segment=10, log_t_floor=floor,

@@ -37,10 +37,8 @@ from ..envs.terrain.dynamics import log_prob_pos, terrain_at
 from ..envs.terrain.layout import FLOOR, GOAL, PIT, TERRAINS
 from ..envs.terrain.params import TerrainState
 from ..envs.terrain.world import potential, reward
-from .design_check import ACTIONS, DesignConfig, expected_log_t
-from .finite_horizon import backward
+from .design_check import ACTIONS, DesignConfig, plan_policies
 from .identifiability import _episodes, _get, _put, parameter_slots
-from .terrain import discretise
 
 Z_MARGIN = 3.0
 """Recovered: θ̂ within this many standard errors of the belief and at least this many from the truth, on
@@ -310,11 +308,8 @@ def fit_world(world, belief: str | None = None, cfg: DesignConfig = DesignConfig
     if cfg.teacher.beta is None:
         raise ValueError(NO_SCALE)
     bparams, floor = world.belief(belief), cfg.teacher.log_t_floor
-    d = discretise(world.params, cfg.n, ACTIONS)
-    k_h, _ = jax.random.split(rng.key(cfg.seed))  # the design check's key: the same unaware policy
-    log_h = expected_log_t(k_h, world.params, bparams, d.positions, jnp.asarray(ACTIONS), cfg.draws, floor)
-    log_h = jnp.where(~d.terminal[:, None], log_h, 0.0)
-    behaviour = [np.asarray(backward(d, r, world.horizon)[1]) for r in (d.rewards, d.rewards + log_h)]
+    d, _, policies = plan_policies(world, bparams, cfg)  # the design check's own policies
+    behaviour = [np.asarray(policies["optimal"]), np.asarray(policies["unaware"])]
     key, beta = jax.random.fold_in(rng.key(cfg.seed), 1), cfg.teacher.beta
     q = simulate_queries(key, world.params, bparams, behaviour, ACTIONS, d.index, cfg.n, beta=beta, budget=cfg.budget,
                          segment=cfg.segment, log_t_floor=floor, episodes=episodes)  # fmt: skip

@@ -35,7 +35,7 @@ from ..envs.terrain.layout import GOAL, PIT, TERRAINS
 from ..teachers.preference import TeacherConfig
 from .finite_horizon import Outcome, backward, forward
 from .identifiability import Parameter, belief_information
-from .terrain import compass_actions, discretise
+from .terrain import Discretised, compass_actions, discretise
 
 UNAWARE_AT_MOST = 0.8
 """A valid world: the unaware learner's policy earns at most this share of the optimal-vs-random gap."""
@@ -175,25 +175,39 @@ def conditions(world, cfg: DesignConfig, parameters: list[Parameter]) -> list[Co
     ]
 
 
+def _expected_log_t(key, world, scored_params, d: Discretised, cfg: DesignConfig) -> jax.Array:
+    """[N, K] :func:`expected_log_t` on the discretised world, 0 at terminal states."""
+    log = expected_log_t(
+        key, world.params, scored_params, d.positions, jnp.asarray(ACTIONS), cfg.draws, cfg.teacher.log_t_floor
+    )
+    return jnp.where(~d.terminal[:, None], log, 0.0)
+
+
+def plan_policies(world, bparams, cfg: DesignConfig) -> tuple[Discretised, jax.Array, dict]:
+    """The discretised world, E_T[log T_H] ``[N, K]`` and the time-dependent policies optimal under r_H
+    (``optimal``) and under r_H + E_T[log T_H] (``unaware``), each ``[H, N]``.
+
+    These two policies, ε-random, also supply the segments of the identifiability measures
+    (:func:`~.identifiability.belief_information`, :func:`~.belief_fit.fit_world`).
+    """
+    d = discretise(world.params, cfg.n, ACTIONS)
+    k_h, _ = jax.random.split(rng.key(cfg.seed))
+    log_h = _expected_log_t(k_h, world, bparams, d, cfg)
+    policies = {
+        "optimal": backward(d, d.rewards, world.horizon)[1],
+        "unaware": backward(d, d.rewards + log_h, world.horizon)[1],
+    }
+    return d, log_h, policies
+
+
 def design_check(world, belief: str | None = None, cfg: DesignConfig = DesignConfig()) -> DesignCheck:
     """Plan, compare and measure (see the module docstring) for ``world`` and its ``belief`` (default: the first)."""
     name = belief or next(iter(world.beliefs))
     bparams = world.belief(name)
-    d = discretise(world.params, cfg.n, ACTIONS)
-    actions = jnp.asarray(ACTIONS)
-    k_h, k_t = jax.random.split(rng.key(cfg.seed))
-    floor = cfg.teacher.log_t_floor
-    live = ~d.terminal[:, None]
-    log_h = jnp.where(live, expected_log_t(k_h, world.params, bparams, d.positions, actions, cfg.draws, floor), 0.0)
-    log_t = jnp.where(
-        live, expected_log_t(k_t, world.params, world.params, d.positions, actions, cfg.draws, floor), 0.0
-    )
-    horizon = world.horizon
-    policies = {
-        "optimal": backward(d, d.rewards, horizon)[1],
-        "unaware": backward(d, d.rewards + log_h, horizon)[1],
-        "unbiased": backward(d, d.rewards + log_t, horizon)[1],
-    }
+    d, log_h, policies = plan_policies(world, bparams, cfg)
+    _, k_t = jax.random.split(rng.key(cfg.seed))
+    log_t = _expected_log_t(k_t, world, world.params, d, cfg)
+    policies["unbiased"] = backward(d, d.rewards + log_t, world.horizon)[1]
     outcomes = {k: forward(d, world.params, p, d.rewards) for k, p in policies.items()}
     outcomes["random"] = forward(d, world.params, "uniform", d.rewards)
     gap = outcomes["optimal"].ret - outcomes["random"].ret
@@ -210,7 +224,7 @@ def design_check(world, belief: str | None = None, cfg: DesignConfig = DesignCon
         beta=cfg.teacher.beta,
         budget=cfg.budget,
         segment=cfg.segment,
-        log_t_floor=floor,
+        log_t_floor=cfg.teacher.log_t_floor,
         seed=cfg.seed,
     )
     return DesignCheck(
