@@ -30,6 +30,16 @@ def _cell_centres(world_params):
     return rows, cols, jnp.stack([cols, rows], -1).astype(jnp.float32) + 0.5  # [H, W, 2] (x, y)
 
 
+def _cell_inputs(world_params, actions):
+    """Observations and actions at every cell centre × action: ([H, W, n, 2], [H, W, n, 2]), and positions [H, W, 2]."""
+    h, w = world_params.grid.shape
+    actions = jnp.asarray(CROSS_ACTIONS if actions is None else actions, jnp.float32)
+    _, _, pos = _cell_centres(world_params)
+    obs = 2.0 * pos / jnp.array([w, h], jnp.float32) - 1.0  # as envs.terrain.observe
+    obs = jnp.broadcast_to(obs[:, :, None], (h, w, actions.shape[0], 2))
+    return obs, jnp.broadcast_to(actions, obs.shape), pos
+
+
 def belief_noise_map(
     params: Params, norm: Norm, world_params, min_std: float, actions: jax.Array | None = None
 ) -> jax.Array:
@@ -44,14 +54,10 @@ def belief_noise_map(
         [H, W] float, NaN on walls.
     """
     h, w = world_params.grid.shape
-    actions = jnp.asarray(CROSS_ACTIONS if actions is None else actions, jnp.float32)
-    rows, cols, pos = _cell_centres(world_params)
-    scale = jnp.array([w, h], jnp.float32)
-    obs = 2.0 * pos / scale - 1.0  # as envs.terrain.observe
-    obs = jnp.broadcast_to(obs[:, :, None], (h, w, actions.shape[0], 2))
-    act = jnp.broadcast_to(actions, obs.shape)
+    rows, cols, _ = _cell_centres(world_params)
+    obs, act, _ = _cell_inputs(world_params, actions)
     _, std = belief_predict(params, norm, obs, act, min_std)  # [H, W, n, 2], observation units
-    cells = (std * 0.5 * scale).mean((-1, -2))
+    cells = (std * 0.5 * jnp.array([w, h], jnp.float32)).mean((-1, -2))
     return jnp.where(is_wall(world_params, rows, cols), jnp.nan, cells)
 
 
@@ -65,16 +71,6 @@ def table_noise_map(world_params) -> jax.Array:
     rows, cols, pos = _cell_centres(world_params)
     sigma = jax.vmap(jax.vmap(lambda p: move_model(world_params, p, jnp.zeros(2))[1]))(pos)
     return jnp.where(is_wall(world_params, rows, cols), jnp.nan, sigma)
-
-
-def _cell_inputs(world_params, actions):
-    """Observations and actions at every cell centre × action: ([H, W, n, 2], [H, W, n, 2]), and positions [H, W, 2]."""
-    h, w = world_params.grid.shape
-    actions = jnp.asarray(CROSS_ACTIONS if actions is None else actions, jnp.float32)
-    _, _, pos = _cell_centres(world_params)
-    obs = 2.0 * pos / jnp.array([w, h], jnp.float32) - 1.0  # as envs.terrain.observe
-    obs = jnp.broadcast_to(obs[:, :, None], (h, w, actions.shape[0], 2))
-    return obs, jnp.broadcast_to(actions, obs.shape), pos
 
 
 def belief_stay_map(params: Params, norm: Norm, world_params, actions: jax.Array | None = None) -> jax.Array:
