@@ -94,8 +94,17 @@ def main(names):
     behaviour = [np.asarray(policies["optimal"]), np.asarray(policies["unaware"])]
     q, held = (
         simulate_queries(
-            jax.random.key(k), world.params, belief, behaviour, ACTIONS, d.index, cfg.n,
-            beta=1.0, budget=800, segment=10, log_t_floor=floor,
+            jax.random.key(k),
+            world.params,
+            belief,
+            behaviour,
+            ACTIONS,
+            d.index,
+            cfg.n,
+            beta=1.0,
+            budget=800,
+            segment=10,
+            log_t_floor=floor,
         )  # fmt: skip
         for k in (1, 11)
     )
@@ -124,7 +133,9 @@ def main(names):
         state = prefbias_init(jax.random.key(4), 2, 2, pc, dyn, units=world.obs_units())
         t0 = time.time()
         state, info = jax.jit(fit, static_argnames="cfg")(state, data, jax.random.key(5), cfg=pc)
-        p = preference_prob(state.reward.mean, state.belief.mean, state.norm, held_data.seg_a, held_data.seg_b, pc, state.log_unit)
+        p = preference_prob(
+            state.reward.mean, state.belief.mean, state.norm, held_data.seg_a, held_data.seg_b, pc, state.log_unit
+        )
         nll, acc = nll_acc(jnp.clip(p, 1e-6, 1 - 1e-6), held.label)
         label = f"{name} ({time.time() - t0:.0f} s, train acc {float(info.accuracy):.2f}, held-out NLL {nll:.3f} acc {acc:.2f})"
         spread = float(jnp.mean(jax.nn.softplus(ravel_pytree(state.belief.rho)[0])))

@@ -42,7 +42,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..envs.resolve import resolve_env
     from ..envs.terrain import TerrainWorld
-    from ..planning.design_check import DesignConfig, design_check, report
+    from ..planning.design_check import DesignConfig, design_check, plan_policies, report
     from ..teachers.preference import TeacherConfig
 
     if args.budget < 1 or args.segment < 1 or args.resolution < 1:
@@ -66,10 +66,11 @@ def run(args: argparse.Namespace) -> int:
     )
     valid = True
     for world in worlds:
-        chk = design_check(world, args.belief, cfg)
+        planned = plan_policies(world, world.belief(args.belief), cfg)  # planned once for the check and the fit
+        chk = design_check(world, args.belief, cfg, planned)
         text, record = report(chk), chk.as_dict()
         if args.fit:
-            fit_text, fit = _fit(world, args.belief, cfg, chk.parameters)
+            fit_text, fit = _fit(world, args.belief, cfg, chk.parameters, planned)
             record["fit"] = json.loads(json.dumps(fit), parse_constant=lambda _: None)  # ±inf, NaN as null
             text += "\n" + fit_text
         print(text)
@@ -83,13 +84,13 @@ def run(args: argparse.Namespace) -> int:
     return 0 if valid else 1
 
 
-def _fit(world, belief, cfg, fisher) -> tuple[str, dict | None]:
+def _fit(world, belief, cfg, fisher, planned) -> tuple[str, dict | None]:
     """The maximum-likelihood fit as text and as a plain record (None where it cannot run)."""
     from ..planning.belief_fit import FLAT_NATS, NO_SCALE, Z_MARGIN, fit_world, verdict
 
     if cfg.teacher.beta is None:
         return f"maximum-likelihood fit: not run: {NO_SCALE}\n", None
-    fit = fit_world(world, belief, cfg)
+    fit = fit_world(world, belief, cfg, planned=planned)
     se = {p.name: p.stderr for p in fisher}
     lines = [
         f"maximum-likelihood fit to {cfg.budget} simulated answers (β = {cfg.teacher.beta:g}), started at the truth:",

@@ -302,13 +302,16 @@ def verdict(fit: BeliefFit, name: str) -> str:
     return "recovered" if e.z_belief <= Z_MARGIN else "away from the belief"
 
 
-def fit_world(world, belief: str | None = None, cfg: DesignConfig = DesignConfig(), *, episodes=64, **fit) -> BeliefFit:
+def fit_world(
+    world, belief: str | None = None, cfg: DesignConfig = DesignConfig(), *, episodes=64, planned=None, **fit
+) -> BeliefFit:
     """:func:`fit_belief` on ``cfg.budget`` queries from the design check's behaviour (its optimal
-    and unaware policies, ε-random) in a terrain world, answered by the person of ``belief``."""
+    and unaware policies, ε-random) in a terrain world, answered by the person of ``belief``.
+    ``planned``: :func:`~.design_check.plan_policies`'s result, when the caller has it."""
     if cfg.teacher.beta is None:
         raise ValueError(NO_SCALE)
     bparams, floor = world.belief(belief), cfg.teacher.log_t_floor
-    d, _, policies = plan_policies(world, bparams, cfg)  # the design check's own policies
+    d, _, policies = planned if planned is not None else plan_policies(world, bparams, cfg)  # the design check's own
     behaviour = [np.asarray(policies["optimal"]), np.asarray(policies["unaware"])]
     key, beta = jax.random.fold_in(rng.key(cfg.seed), 1), cfg.teacher.beta
     q = simulate_queries(key, world.params, bparams, behaviour, ACTIONS, d.index, cfg.n, beta=beta, budget=cfg.budget,

@@ -200,11 +200,15 @@ def plan_policies(world, bparams, cfg: DesignConfig) -> tuple[Discretised, jax.A
     return d, log_h, policies
 
 
-def design_check(world, belief: str | None = None, cfg: DesignConfig = DesignConfig()) -> DesignCheck:
-    """Plan, compare and measure (see the module docstring) for ``world`` and its ``belief`` (default: the first)."""
+def design_check(world, belief: str | None = None, cfg: DesignConfig = DesignConfig(), planned=None) -> DesignCheck:
+    """Plan, compare and measure (see the module docstring) for ``world`` and its ``belief`` (default: the first).
+
+    ``planned``: :func:`plan_policies`'s result for this world, belief and ``cfg``, when the caller has it.
+    """
     name = belief or next(iter(world.beliefs))
     bparams = world.belief(name)
-    d, log_h, policies = plan_policies(world, bparams, cfg)
+    d, log_h, policies = planned if planned is not None else plan_policies(world, bparams, cfg)
+    policies = dict(policies)
     _, k_t = jax.random.split(rng.key(cfg.seed))
     log_t = _expected_log_t(k_t, world, world.params, d, cfg)
     policies["unbiased"] = backward(d, d.rewards + log_t, world.horizon)[1]
