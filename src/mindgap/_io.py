@@ -15,3 +15,10 @@ def atomic_write(path: Path, data: str | bytes) -> None:
     with os.fdopen(fd, "wb" if isinstance(data, bytes) else "w") as f:
         f.write(data)
     os.replace(tmp, path)
+
+
+def cache_root(cache_dir: str | Path | None = None) -> Path:
+    """Where trained-once artefacts are cached: ``cache_dir``, else ``$MINDGAP_CACHE``, else ``~/.cache/mindgap``."""
+    if cache_dir is not None:
+        return Path(cache_dir)
+    return Path(os.environ.get("MINDGAP_CACHE", Path.home() / ".cache" / "mindgap")).expanduser()

@@ -8,6 +8,7 @@ import pytest
 from mindgap.algorithms import engine
 from mindgap.algorithms.pbrl import fast_config, train
 from mindgap.cli import main
+from mindgap.envs.gym_world import NO_BELIEF
 from mindgap.envs.interface import EnvError
 from mindgap.envs.resolve import resolve_env
 
@@ -63,9 +64,7 @@ def test_learners_that_need_dynamics_refuse_gym_worlds(tmp_path, capsys):
     ):
         with pytest.raises(EnvError) as e:
             mod.train(world, *args, progress=False)
-        assert str(e.value) == (
-            f"{who} needs an exact log_prob or a learned believed-dynamics model; gym worlds have neither yet"
-        )
+        assert str(e.value) == f"{who} needs {NO_BELIEF}"
     assert main(["pebble", "--env", ENV, "--fast", "--out", str(tmp_path)]) == 2  # the default teacher is biased
     assert "biased teacher needs the person's believed dynamics" in capsys.readouterr().err
     assert main(["drlhp", "--env", "gym:InvertedPendulum-v9", "--fast", "--out", str(tmp_path)]) == 2

@@ -139,6 +139,27 @@ def test_absorbing_head_is_a_bounded_linear_function_of_terminal_features(key):
     np.testing.assert_array_equal(absorbing_value(off, s_t), 0.0)
 
 
+def test_a_single_absorbing_state_serves_worlds_of_any_size(key):
+    import pytest
+
+    from mindgap.algorithms.prefbias import PrefBiasLoopConfig
+    from mindgap.algorithms.prefbias_inference import PrefBiasConfig
+
+    with pytest.raises(ValueError, match="at most 3 observation dimensions"):
+        reward_weights_init(key, 8, 2, (8,), absorbing=True)
+    weights = reward_weights_init(key, 8, 2, (8,), absorbing=True, single=True)
+    assert weights.absorb.shape == (1,)
+    weights = weights._replace(absorb=jnp.array([3.0]))
+    s_t = jax.random.uniform(key, (4, 8), minval=-1, maxval=1)
+    np.testing.assert_allclose(absorbing_value(weights, s_t), REWARD_BOUND * np.tanh(3.0 / REWARD_BOUND), rtol=1e-6)
+    # the run record names the choice only when it is not the default, so older run folders still resume
+    plain = PrefBiasLoopConfig().as_dict()["prefbias"]
+    single = PrefBiasLoopConfig(prefbias=PrefBiasConfig(absorbing_state="single")).as_dict()["prefbias"]
+    assert "absorbing_state" not in plain and single["absorbing_state"] == "single"
+    with pytest.raises(ValueError, match="absorbing_state must be one of"):
+        PrefBiasConfig(absorbing_state="many").check()
+
+
 def test_draw_per_pair_gives_each_pair_one_draw_of_all_weights(key):
     """One draw from q per pair: every weight (r_w's and r_abs's) has q's mean and spread across pairs."""
     k_w, k_m, k_draw = jax.random.split(key, 3)

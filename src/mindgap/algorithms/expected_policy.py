@@ -26,14 +26,13 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import os
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import rng
+from .._io import cache_root
 from ..checkpoint import load_pytree, save_pytree
 from ..data.fingerprint import identity_leaves
 from ..envs.interface import Env, World
@@ -75,13 +74,6 @@ class ExpectedPolicyConfig:
             raise ValueError("sac.learning_starts leaves no training steps")
         if self.seeds < 1 or self.eval_episodes < 1:
             raise ValueError("seeds and eval_episodes must be at least 1")
-
-
-def cache_root(cache_dir: str | Path | None = None) -> Path:
-    """``cache_dir``, else ``$MINDGAP_CACHE``, else ``~/.cache/mindgap``."""
-    if cache_dir is not None:
-        return Path(cache_dir)
-    return Path(os.environ.get("MINDGAP_CACHE", Path.home() / ".cache" / "mindgap")).expanduser()
 
 
 def cache_key(belief_params, cfg: ExpectedPolicyConfig) -> str:

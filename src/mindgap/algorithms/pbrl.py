@@ -27,7 +27,7 @@ from pathlib import Path
 
 import jax
 
-from ..envs.gym_world import GymWorld
+from ..envs.gym_world import NO_BELIEF, GymWorld
 from ..envs.interface import Env
 from ..feedback.queries import SAMPLERS, select_queries
 from ..models.reward_ensemble import (
@@ -187,11 +187,8 @@ def train(
         return, queries), ``final_returns`` [seeds, episodes], ``paths``, ``config``, ``carry``.
     """
     cfg.check()
-    if isinstance(world, GymWorld) and cfg.method != "sac" and teacher == "biased":
-        raise ValueError(
-            "the biased teacher needs the person's believed dynamics (an exact log_prob); "
-            "gym worlds have none yet: use --teacher true"
-        )
+    if isinstance(world, GymWorld) and cfg.method != "sac" and teacher == "biased" and world.env.log_prob is None:
+        raise ValueError(f"the biased teacher needs {NO_BELIEF}, or use --teacher true")
     person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who=cfg.method)
     if cfg.method == "sac":
         person = None

@@ -70,12 +70,14 @@ class PrefBiasLoopConfig(Schedule):
     """Re-initialise the critic after pre-training (as PEBBLE)."""
 
     def as_dict(self) -> dict:
-        """The run record's config; ``prefbias.absorbing`` and ``prefbias.stay_head`` only when on, so
-        run folders from before them still resume."""
+        """The run record's config; ``prefbias.absorbing`` and ``prefbias.stay_head`` only when on, and
+        ``prefbias.absorbing_state`` only when not the default, so run folders from before them still resume."""
         d = super().as_dict()
         for name in ("absorbing", "stay_head"):
             if not getattr(self.prefbias, name):
                 del d["prefbias"][name]
+        if not self.prefbias.absorbing or self.prefbias.absorbing_state == "terminal":
+            del d["prefbias"]["absorbing_state"]
         return d
 
     def check(self) -> None:

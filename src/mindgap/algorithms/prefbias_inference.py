@@ -58,6 +58,7 @@ from ..models.prefbias_nets import (
     reward_value,
     reward_weights_init,
 )
+from ..models.reward_ensemble import ABSORBING_STATES
 
 BELIEF_PRIORS = ("dynamics", "random")
 
@@ -72,6 +73,9 @@ class PrefBiasConfig:
     """Give r_w absorbing states (a learned r_abs per terminal state; Kostrikov et al. 2019). Without them
     a segment that ends in nav2's pit after three steps is compared with ten-step segments as a shorter
     sum, and four nav2 seeds of five learned to dive into the pit (README, "PrefBias experiments")."""
+    absorbing_state: str = "terminal"
+    """With ``absorbing``: one absorbing state per terminal state (``terminal``, radial basis features of s_T;
+    worlds of at most three observation dimensions) or one for all (``single``, DAC's; any world)."""
     dynamics: DynamicsConfig = DynamicsConfig()
     """Architecture (and training) of f_ψ; the belief f_φ shares its architecture and scale floor."""
     stay_head: bool = True
@@ -100,6 +104,10 @@ class PrefBiasConfig:
     """Alternating rounds per fit (a step on Ω_w, then a step on Ω_φ)."""
 
     def check(self) -> None:
+        if self.absorbing_state not in ABSORBING_STATES:
+            raise ValueError(
+                f"absorbing_state must be one of {', '.join(ABSORBING_STATES)}, got {self.absorbing_state!r}"
+            )
         if self.belief_prior not in BELIEF_PRIORS:
             raise ValueError(f"unknown belief_prior {self.belief_prior!r}: choose from {', '.join(BELIEF_PRIORS)}")
         for name in ("reward_prior_std", "belief_prior_std", "init_std", "lr"):
@@ -144,7 +152,7 @@ def prefbias_init(
     """
     cfg.check()
     k_w, k_phi = jax.random.split(key)
-    w0 = reward_weights_init(k_w, obs_dim, act_dim, cfg.reward_hidden, cfg.absorbing)
+    w0 = reward_weights_init(k_w, obs_dim, act_dim, cfg.reward_hidden, cfg.absorbing, cfg.absorbing_state == "single")
     if cfg.belief_prior == "dynamics":
         phi0 = dynamics.params
     else:

@@ -43,6 +43,7 @@ def add_parsers(sub) -> None:
                 help="learn the reward offline from a preferences file (mindgap study export)",
             )
             p.add_argument("--belief", help="belief of a biased teacher (default: the world's first)")
+            add_belief_env_flag(p)
             p.add_argument("--queries", type=int, help="query budget (default 800)")
             p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
             p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
@@ -78,6 +79,47 @@ ENV_HELP = (
 def add_env_flag(p) -> None:
     """``--env`` (``--world`` is the same flag): see :mod:`~mindgap.envs.resolve`."""
     p.add_argument("--env", "--world", dest="env", required=True, metavar="ENV", help=ENV_HELP)
+
+
+def add_belief_env_flag(p) -> None:
+    """``--belief-env``: a gym world's person believes a learned model of another variant of the env."""
+    p.add_argument(
+        "--belief-env",
+        metavar="SPEC",
+        help="gym worlds: the env as the person imagines it (gym:ID,key=value, same spaces as --env); the "
+        "person's believed dynamics are a Gaussian model fitted to its transitions (cached), or a saved model (.npz)",
+    )
+
+
+def with_belief_env(world, args: argparse.Namespace):
+    """``world`` with the learned belief of ``--belief-env`` (unchanged without it); writes
+    ``belief_model.json`` (the fit's record) into the run folder and prints its quality in one line."""
+    spec = getattr(args, "belief_env", None)
+    if spec is None:
+        return world
+    from .._io import atomic_write
+    from ..envs.gym_world import GymWorld, gym_world_from_spec
+    from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, load_learned_belief, with_learned_belief
+
+    if not isinstance(world, GymWorld):
+        raise ValueError(f"--belief-env is for gym worlds; {world.name} states its beliefs itself (--belief)")
+    if spec.endswith(".npz"):
+        belief, record = load_learned_belief(spec)
+    else:
+        cfg = BeliefFitConfig.fast() if args.fast else BeliefFitConfig()
+        belief, record = fit_learned_belief(gym_world_from_spec(spec), cfg, true_world=world, progress=not args.quiet)
+    if record["obs_dim"] != world.env.observation_space.dim or record["act_dim"] != len(world.act_low):
+        raise ValueError(f"--belief-env {spec}: its model's observations or actions differ in size from {world.name}'s")
+    args.out.mkdir(parents=True, exist_ok=True)
+    atomic_write(args.out / "belief_model.json", json.dumps(record, indent=2))
+    true_ll = ""
+    if "true_log_lik" in record:
+        true_ll = f", {record['true_log_lik']:.2f} on the true env's ({record['true_below_floor']:.0%} below the floor)"
+    print(
+        f"the person's believed dynamics: a model of {record['belief_env']} ({record['transitions']} transitions), "
+        f"held-out log-likelihood {record['held_out_log_lik']:.2f} a transition{true_ll}; {record['path']}"
+    )
+    return with_learned_belief(world, spec, belief)
 
 
 def beta_value(text: str) -> float | None:
@@ -189,6 +231,8 @@ def run(args: argparse.Namespace) -> int:
 
         return run_offline(args)
     world = resolve_env(args.env)
+    if args.command != "sac":
+        world = with_belief_env(world, args)
     preset = fast_config if args.fast else method_config
     base = preset(args.command)
     fill_from_preset(args, base)

@@ -14,7 +14,7 @@ import argparse
 from ..algorithms.prefbias import PrefBiasLoopConfig
 from ..algorithms.prefbias_inference import PrefBiasConfig
 from ..algorithms.prefbias_queries import SAMPLERS
-from .learn import add_env_flag, add_person_flags, add_run_flags
+from .learn import add_belief_env_flag, add_env_flag, add_person_flags, add_run_flags, with_belief_env
 
 
 def _on(flag: bool) -> str:
@@ -34,6 +34,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--answer-timeout", type=float, default=600.0, help="study teacher: seconds to wait per round")
     p.add_argument("--belief", help="belief of a biased teacher (default: the world's first)")
+    add_belief_env_flag(p)
     p.add_argument("--queries", type=int, help="query budget (default 800)")
     p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
     p.add_argument(
@@ -47,6 +48,13 @@ def add_parser(sub) -> None:
         default=PrefBiasConfig.absorbing,
         help="absorbing states for the learned reward (Kostrikov et al. 2019): segments keep the steps after a "
         f"goal or pit and r_w learns what each terminal state is worth (default: {_on(PrefBiasConfig.absorbing)})",
+    )
+    p.add_argument(
+        "--absorbing-state",
+        choices=("terminal", "single"),
+        default=PrefBiasConfig.absorbing_state,
+        help="with --absorbing: one absorbing state per terminal state (default; worlds of at most 3 "
+        "observation dimensions) or one for all (single: any world, e.g. a gym env)",
     )
     p.add_argument(
         "--stay-head",
@@ -77,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from .learn import fill_from_preset, sac_config, write_outputs
 
     world = resolve_env(args.env)
+    world = with_belief_env(world, args)
     preset = "fast" if args.fast else "full"
     base = prefbias_config(preset) if args.fast else PrefBiasLoopConfig()
     fill_from_preset(args, base)
@@ -87,7 +96,11 @@ def run(args: argparse.Namespace) -> int:
         sac=sac,
         sampler=args.sampler,
         prefbias=dataclasses.replace(
-            base.prefbias, belief_prior=args.prior, absorbing=args.absorbing, stay_head=args.stay_head
+            base.prefbias,
+            belief_prior=args.prior,
+            absorbing=args.absorbing,
+            absorbing_state=args.absorbing_state,
+            stay_head=args.stay_head,
         ),
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )

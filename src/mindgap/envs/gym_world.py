@@ -9,7 +9,9 @@ actions in [−1, 1]^a, which :meth:`GymWorld.to_env` maps affinely onto the env
 For a simulated person on the true reward, :data:`REWARDS` holds exact pure-JAX rewards
 ``reward(obs, act, next_obs, params)`` (``act`` the agent's, in [−1, 1]) of the envs whose
 reward is a function of the transition's observations: Pendulum-v1 and
-MountainCarContinuous-v0, transcribed from gymnasium's ``classic_control`` sources. Other
+MountainCarContinuous-v0, transcribed from gymnasium's ``classic_control`` sources, and the
+continuous lunar lander's (:func:`~mindgap.envs.lunar.lander_reward`; with the solar wind of
+:mod:`~mindgap.envs.lunar` too). Other
 ids get no reward (SAC runs; PEBBLE/DRLHP's simulated person refuses). No world has a
 ``log_prob``: learners that need the person's believed dynamics refuse gym worlds
 (:func:`refuse_without_dynamics`).
@@ -23,6 +25,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .interface import Box, Env, EnvError, World
+from .lunar import ENV_ID as LANDER_ID
+from .lunar import lander_reward
+from .lunar import register as register_lander
 
 
 def _host_only(*_args, **_kwargs):
@@ -55,6 +60,8 @@ def mountain_car_reward(obs, act, next_obs, params):
 
 REWARDS = {
     "Pendulum-v1": (pendulum_reward, lambda kw: {}),
+    "LunarLander-v3": (lander_reward, lambda kw: {}),
+    LANDER_ID: (lander_reward, lambda kw: {}),
     "MountainCarContinuous-v0": (
         mountain_car_reward,
         lambda kw: {"goal_position": 0.45, "goal_velocity": float(kw.get("goal_velocity", 0.0))},
@@ -82,6 +89,7 @@ class GymWorld(World):
         """A fresh gymnasium env (time-limited at ``horizon``), reset with ``seed``; returns (env, obs)."""
         import gymnasium
 
+        register_lander()
         env = gymnasium.make(self.env_id, max_episode_steps=self.horizon, **dict(self.kwargs))
         obs, _ = env.reset(seed=seed)
         return env, np.asarray(obs, np.float32).reshape(-1)
@@ -92,14 +100,17 @@ class GymWorld(World):
         return np.clip(low + (np.asarray(act, np.float32) + 1.0) * 0.5 * (high - low), low, high)
 
     def fingerprint_tree(self):
-        """The reward's params and the action bounds (the id and kwargs are in the world's name)."""
-        return (self.params, np.asarray(self.act_low, np.float32), np.asarray(self.act_high, np.float32))
+        """The reward's params, the action bounds (the id and kwargs are in the world's name) and, when the
+        person's belief is learned (:mod:`~mindgap.teachers.learned_belief`), the beliefs."""
+        tree = (self.params, np.asarray(self.act_low, np.float32), np.asarray(self.act_high, np.float32))
+        return (*tree, dict(self.beliefs)) if self.beliefs else tree
 
 
 def make_gym_world(env_id: str, **kwargs) -> GymWorld:
     """The :class:`GymWorld` of gymnasium's ``env_id`` made with ``kwargs``; one-line EnvError otherwise."""
     import gymnasium
 
+    register_lander()
     try:
         probe = gymnasium.make(env_id, **kwargs)
     except gymnasium.error.Error as e:
@@ -162,9 +173,14 @@ def gym_world_from_spec(spec: str) -> GymWorld:
     return world
 
 
+NO_BELIEF = (
+    "the person's believed dynamics: a gym world has no exact log_prob; give it a learned one with "
+    "--belief-env gym:ID,key=value (the env as the person imagines it)"
+)
+
+
 def refuse_without_dynamics(world, who: str) -> None:
-    """One line for learners whose simulated person needs believed dynamics (PrefBias, EPS) on a gym world."""
-    if isinstance(world, GymWorld):
-        raise EnvError(
-            f"{who} needs an exact log_prob or a learned believed-dynamics model; gym worlds have neither yet"
-        )
+    """One line for learners whose simulated person needs believed dynamics (PrefBias, EPS) on a gym world
+    that has none (:func:`~mindgap.teachers.learned_belief.with_learned_belief` gives it one)."""
+    if isinstance(world, GymWorld) and world.env.log_prob is None:
+        raise EnvError(f"{who} needs {NO_BELIEF}")

@@ -64,13 +64,16 @@ class RewardWeights(NamedTuple):
     absorb: jax.Array
 
 
-def reward_weights_init(key: jax.Array, obs_dim: int, act_dim: int, hidden: tuple[int, ...], absorbing: bool):
-    """A random MLP; with ``absorbing`` as :class:`RewardWeights` with a head of zeros on :data:`RBF_PER_AXIS`^d features.
+def reward_weights_init(
+    key: jax.Array, obs_dim: int, act_dim: int, hidden: tuple[int, ...], absorbing: bool, single: bool = False
+):
+    """A random MLP; with ``absorbing`` as :class:`RewardWeights` with a head of zeros on :data:`RBF_PER_AXIS`^d
+    features (one absorbing state per terminal state), or with ``single`` on the constant feature (one for all).
 
     The MLP is the same for the same key either way; r_abs starts at 0 everywhere.
     """
     net = init_mlp(key, reward_sizes(obs_dim, act_dim, hidden))
-    return RewardWeights(net, jnp.zeros(rbf_count(obs_dim))) if absorbing else net
+    return RewardWeights(net, jnp.zeros(1 if single else rbf_count(obs_dim))) if absorbing else net
 
 
 def _net(params) -> Params:
