@@ -35,6 +35,7 @@ from .. import rng
 from .._io import cache_root
 from ..checkpoint import load_pytree, save_pytree
 from ..data.fingerprint import identity_leaves
+from ..envs.gym_world import GymWorld, gym_world_from_spec, refuse_without_dynamics
 from ..envs.interface import Env, World
 from ..models.mlp import Params, init_mlp
 from ..teachers.expectation import ExpectationTeacher
@@ -76,9 +77,12 @@ class ExpectedPolicyConfig:
             raise ValueError("seeds and eval_episodes must be at least 1")
 
 
-def cache_key(belief_params, cfg: ExpectedPolicyConfig) -> str:
-    """Hash of the belief world's arrays (shapes and dtypes included) and of the training configuration."""
+def cache_key(belief_params, cfg: ExpectedPolicyConfig, salt=None) -> str:
+    """Hash of the belief world's arrays (shapes and dtypes included), of the training configuration and,
+    when given, of ``salt`` (JSON: on a gym world the name and horizon of the env π_H is trained in)."""
     h = hashlib.sha256(f"expected-policy v{CACHE_VERSION}".encode())
+    if salt is not None:
+        h.update(json.dumps(salt).encode())
     for leaf in identity_leaves(belief_params):
         a = np.asarray(leaf)
         h.update(f"{a.dtype}{a.shape}".encode())
@@ -123,23 +127,48 @@ def train_expected_policy(world: World, belief_params, cfg: ExpectedPolicyConfig
     return actors[int(np.argmax(returns))], returns
 
 
+def train_expected_policy_host(belief_world: GymWorld, cfg: ExpectedPolicyConfig) -> tuple[Params, np.ndarray]:
+    """π_H on a gym world: SAC on the host (:mod:`~mindgap.algorithms.host_loop`) in the env as the person
+    imagines it, ``cfg.seeds`` seeds; the actor of the seed with the best greedy return at the end."""
+    from .pbrl import method_config, train
+
+    sac = method_config(
+        "sac", total_steps=cfg.total_steps, chunk=cfg.chunk, eval_every=cfg.total_steps,
+        eval_episodes=cfg.eval_episodes, sac=cfg.sac, seed=cfg.seed,
+    )  # fmt: skip
+    res = train(belief_world, sac, seeds=cfg.seeds, teacher="true", progress=False)
+    returns = np.asarray(res["final_returns"]).mean(1)
+    best = int(np.argmax(returns))
+    return jax.tree.map(lambda x: x[best], res["carry"].loop.sac.params.actor), returns
+
+
 def expected_policy(
-    world: World, belief_params, cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(), cache_dir=None
+    world: World, belief_params, cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(), cache_dir=None, belief_world=None
 ) -> Params:
     """π_H's actor for the person whose view of the world is ``belief_params``: from the cache, else trained and stored.
 
     Args:
         belief_params: the world under the person's dynamics table (``world.belief(name)``;
-            ``world.params`` for a person who knows the true dynamics).
+            ``world.params`` for a person who knows the true dynamics); on a gym world the
+            person's learned model (:mod:`~mindgap.teachers.learned_belief`).
         cfg: training configuration (part of the cache key).
         cache_dir: cache root; None uses :func:`cache_root`.
+        belief_world: on a gym world, the env as the person imagines it, where π_H is trained
+            (:func:`train_expected_policy_host`).
     """
-    path = cache_root(cache_dir) / "expected_policy" / f"{cache_key(belief_params, cfg)}.npz"
+    gym = isinstance(world, GymWorld)
+    if gym and belief_world is None:
+        raise ValueError("π_H on a gym world is trained in the env the person imagines: pass belief_world")
+    salt = (belief_world.name, belief_world.horizon) if gym else None
+    path = cache_root(cache_dir) / "expected_policy" / f"{cache_key(belief_params, cfg, salt)}.npz"
     template = _actor_template(world.env, cfg)
     if path.exists():
         actor, _ = load_pytree(path, template)
         return actor
-    actor, returns = train_expected_policy(world, belief_params, cfg)
+    if gym:
+        actor, returns = train_expected_policy_host(belief_world, cfg)
+    else:
+        actor, returns = train_expected_policy(world, belief_params, cfg)
     actor = jax.tree.map(lambda t, a: jnp.asarray(a, t.dtype), template, actor)
     save_pytree(path, actor, returns=np.asarray(returns), config=json.dumps(dataclasses.asdict(cfg)))
     return actor
@@ -160,5 +189,14 @@ def expectation_teacher(
         policy_cfg: how π_H is trained when the cache does not hold it.
         cache_dir: cache root (see :func:`cache_root`).
     """
+    if isinstance(world, GymWorld):
+        # the person's belief is a learned model of a variant of the env, named by its spec; π_H is trained there
+        refuse_without_dynamics(world, "EPS's simulated person")
+        if unbiased:
+            raise ValueError("on a gym world an unbiased person believes a learned model of the true env itself")
+        name = belief or next(iter(world.beliefs))
+        params = world.belief(name)
+        actor = expected_policy(world, params, policy_cfg, cache_dir, belief_world=gym_world_from_spec(name))
+        return ExpectationTeacher(params, actor, world.env)
     params = world.params if unbiased else world.belief(belief)
     return ExpectationTeacher(params, expected_policy(world, params, policy_cfg, cache_dir), world.env)

@@ -1,4 +1,4 @@
-"""``mindgap eps``: explicable policy search (Algorithm 3) or its expectation-DRLHP baseline on a terrain world.
+"""``mindgap eps``: explicable policy search (Algorithm 3) or its expectation-DRLHP baseline on a world.
 
 mindgap eps --world d3 --lam 2 --queries 800 --steps 60000 --seeds 5 --out runs/eps-d3
 
@@ -6,6 +6,10 @@ Writes the outputs of ``mindgap sac`` (curve.csv, curve.png, trajectories.png, s
 plus ``explicability.json`` (Eq. 4.4 per seed over stochastic rollouts, against the
 simulated person's exact T_H and π_H) and ``surrogate.png``: the learned u_H per cell
 (Fig. 28) beside the person's expected routes.
+
+On a gym world the person's belief is learned from ``--belief-env`` (an unbiased person's from
+the env itself), π_H is trained there on the host, and the explicability score reads a model
+of the true env learned the same way (:mod:`~mindgap.algorithms.explicability_host`).
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from __future__ import annotations
 import argparse
 
 from ..feedback.queries import SAMPLERS
-from .learn import add_env_flag, add_person_flags, add_run_flags
+from .learn import add_belief_env_flag, add_env_flag, add_person_flags, add_run_flags, with_belief_env
 
 
 def add_parser(sub) -> None:
@@ -25,6 +29,7 @@ def add_parser(sub) -> None:
         "--person", default="biased", help="biased: the world's belief; unbiased: the person knows the dynamics"
     )
     p.add_argument("--belief", help="belief of a biased person (default: the world's first)")
+    add_belief_env_flag(p)
     p.add_argument("--queries", type=int, help="query budget (default 800)")
     p.add_argument("--per-round", type=int, help="queries per feedback round (default 80)")
     p.add_argument("--sampler", default="disagreement", help=f"{', '.join(SAMPLERS)} (default disagreement)")
@@ -69,9 +74,12 @@ def run(args: argparse.Namespace) -> int:
     from ..algorithms.eps_maps import surrogate_maps
     from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
     from ..algorithms.explicability import explicability_scores
+    from ..algorithms.explicability_host import explicability_scores_host
+    from ..envs.gym_world import GymWorld
     from ..envs.resolve import resolve_env
     from ..envs.terrain import TerrainWorld
     from ..plotting.terrain import save_fields
+    from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief
     from ..teachers.preference import TeacherConfig
     from .learn import fill_from_preset, sac_config, write_outputs
 
@@ -80,6 +88,12 @@ def run(args: argparse.Namespace) -> int:
     if args.rollouts < 1:
         raise ValueError("--rollouts must be at least 1")
     world = resolve_env(args.env)
+    gym = isinstance(world, GymWorld)
+    if gym and args.person == "unbiased":
+        if args.belief_env is not None:
+            raise ValueError("an unbiased person believes the true env: drop --belief-env")
+        args.belief_env = world.name  # a learned model of the env itself
+    world = with_belief_env(world, args)
     preset = "fast" if args.fast else "full"
     base = eps_config(preset) if args.fast else EPSConfig()
     fill_from_preset(args, base)
@@ -100,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = eps_config(preset, **over)
     policy_cfg = ExpectedPolicyConfig.fast() if args.fast else ExpectedPolicyConfig()
     person = expectation_teacher(
-        world, args.belief, unbiased=args.person == "unbiased", policy_cfg=policy_cfg, cache_dir=args.cache
+        world, args.belief, unbiased=args.person == "unbiased" and not gym, policy_cfg=policy_cfg, cache_dir=args.cache
     )
     res = train(
         world,
@@ -113,9 +127,15 @@ def run(args: argparse.Namespace) -> int:
         person_name=args.person,
     )
     carry = res["carry"]
-    scores = explicability_scores(
-        rng.key(20_000 + args.seed), world, person, carry.loop.sac.params.actor, args.rollouts
-    )
+    if gym:  # T_A too is a learned model there: of the true env, fitted as the person's belief is
+        fit = BeliefFitConfig.fast() if args.fast else BeliefFitConfig()
+        truth, _ = fit_learned_belief(world, fit, cache_dir=args.cache)
+        actors = carry.loop.sac.params.actor
+        scores = explicability_scores_host(world, person, truth, actors, args.rollouts, seed=20_000 + args.seed)
+    else:
+        scores = explicability_scores(
+            rng.key(20_000 + args.seed), world, person, carry.loop.sac.params.actor, args.rollouts
+        )
     atomic_write(args.out / "explicability.json", json.dumps(scores, indent=2))
     label = f"{cfg.method} (λ {cfg.lam:g}, {args.person} person)" if cfg.method == "eps" else "drlhp (expectations)"
     expl = np.array([s["score"] for s in scores])

@@ -107,7 +107,13 @@ def with_belief_env(world, args: argparse.Namespace):
         belief, record = load_learned_belief(spec)
     else:
         cfg = BeliefFitConfig.fast() if args.fast else BeliefFitConfig()
-        belief, record = fit_learned_belief(gym_world_from_spec(spec), cfg, true_world=world, progress=not args.quiet)
+        belief, record = fit_learned_belief(
+            gym_world_from_spec(spec),
+            cfg,
+            true_world=world,
+            cache_dir=getattr(args, "cache", None),
+            progress=not args.quiet,
+        )
     if record["obs_dim"] != world.env.observation_space.dim or record["act_dim"] != len(world.act_low):
         raise ValueError(f"--belief-env {spec}: its model's observations or actions differ in size from {world.name}'s")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -119,7 +125,7 @@ def with_belief_env(world, args: argparse.Namespace):
         f"the person's believed dynamics: a model of {record['belief_env']} ({record['transitions']} transitions), "
         f"held-out log-likelihood {record['held_out_log_lik']:.2f} a transition{true_ll}; {record['path']}"
     )
-    return with_learned_belief(world, spec, belief)
+    return with_learned_belief(world, record["belief_env"], belief)
 
 
 def beta_value(text: str) -> float | None:
