@@ -92,6 +92,10 @@ def test_prefbias_runs_on_a_gym_world_with_a_learned_belief(tmp_path, monkeypatc
     assert record["belief_env"] == HEAVY and record["true_env"] == gym_world_from_spec(TRUE).name
     summary = json.loads((out / "summary.json").read_text())
     assert summary["queries"] == 30
+    from PIL import Image
+
+    with Image.open(out / "rollout.gif") as gif:  # the env drew seed 0's greedy episode
+        assert gif.n_frames > 10 and gif.size == (250, 250)
     assert "the person's believed dynamics: a model of" in capsys.readouterr().out
     # the saved model can be handed to another run (another method, so another folder)
     saved = record["path"]

@@ -284,8 +284,31 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _save_rollout(out: Path, world, res: dict) -> None:
+    """``rollout.gif`` of a gym world's run (see :func:`write_outputs`); an env that cannot draw itself gets a line."""
+    import sys
+
+    import jax
+
+    from ..envs.gym_world import GymWorld
+
+    if not isinstance(world, GymWorld):
+        return
+    from ..plotting.animation import rollout_frames, save_gif
+
+    actor = jax.tree.map(lambda x: x[0], res["carry"].loop.sac.params.actor)
+    try:
+        frames, _ = rollout_frames(world, actor, seed=0)
+        save_gif(out / "rollout.gif", frames)
+    except Exception as e:  # the run's results stand without a picture
+        print(f"no rollout.gif: {world.name} could not draw itself ({type(e).__name__}: {e})", file=sys.stderr)
+
+
 def write_outputs(out: Path, world, res: dict, label: str, queries: int | None = None, **record) -> dict:
     """curve.csv, curve.png, trajectories.png and summary.json of a finished run; returns the summary.
+
+    On a gym world also ``rollout.gif``: one greedy episode of seed 0's policy, drawn by the env
+    (:mod:`~mindgap.plotting.animation`).
 
     ``queries`` overrides the count of queries shown that the curve ends on (the exact-surrogate
     EPS ablation asks none, while its rounds count their budget)."""
@@ -307,6 +330,7 @@ def write_outputs(out: Path, world, res: dict, label: str, queries: int | None =
         save_world(out / "trajectories.png", world.params, {label: paths}, title=f"{world.name}: {label}")
     else:
         save_paths(out / "trajectories.png", {label: paths}, title=f"{world.name}: {label}")
+    _save_rollout(out, world, res)
     final = res["final_returns"]
     summary = {
         **record,

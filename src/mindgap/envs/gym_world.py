@@ -85,12 +85,14 @@ class GymWorld(World):
     act_low: tuple = ()
     act_high: tuple = ()
 
-    def make(self, seed: int | None = None):
-        """A fresh gymnasium env (time-limited at ``horizon``), reset with ``seed``; returns (env, obs)."""
+    def make(self, seed: int | None = None, render_mode: str | None = None):
+        """A fresh gymnasium env (time-limited at ``horizon``, drawing itself with ``render_mode``), reset with
+        ``seed``; returns (env, obs)."""
         import gymnasium
 
         register_lander()
-        env = gymnasium.make(self.env_id, max_episode_steps=self.horizon, **dict(self.kwargs))
+        extra = {} if render_mode is None else {"render_mode": render_mode}
+        env = gymnasium.make(self.env_id, max_episode_steps=self.horizon, **dict(self.kwargs), **extra)
         obs, _ = env.reset(seed=seed)
         return env, np.asarray(obs, np.float32).reshape(-1)
 
