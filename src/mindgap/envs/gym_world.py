@@ -11,7 +11,8 @@ For a simulated person on the true reward, :data:`REWARDS` holds exact pure-JAX 
 reward is a function of the transition's observations: Pendulum-v1 and
 MountainCarContinuous-v0, transcribed from gymnasium's ``classic_control`` sources, and the
 continuous lunar lander's (:func:`~mindgap.envs.lunar.lander_reward`; with the solar wind of
-:mod:`~mindgap.envs.lunar` too). Other
+:mod:`~mindgap.envs.lunar` too), and the MuJoCo hopper's and half-cheetah's where the observation
+holds the x position (:mod:`~mindgap.envs.mujoco_noise`, with or without its hidden noise). Other
 ids get no reward (SAC runs; PEBBLE/DRLHP's simulated person refuses). No world has a
 ``log_prob``: learners that need the person's believed dynamics refuse gym worlds
 (:func:`refuse_without_dynamics`).
@@ -28,6 +29,14 @@ from .interface import Box, Env, EnvError, World
 from .lunar import ENV_ID as LANDER_ID
 from .lunar import lander_reward
 from .lunar import register as register_lander
+from .mujoco_noise import CHEETAH, HOPPER, cheetah_reward, hopper_reward, reward_params
+from .mujoco_noise import register as register_noisy
+
+
+def register_envs() -> None:
+    """Register this package's gymnasium ids (the solar-wind lander, the noisy hopper and cheetah)."""
+    register_lander()
+    register_noisy()
 
 
 def _host_only(*_args, **_kwargs):
@@ -62,12 +71,17 @@ REWARDS = {
     "Pendulum-v1": (pendulum_reward, lambda kw: {}),
     "LunarLander-v3": (lander_reward, lambda kw: {}),
     LANDER_ID: (lander_reward, lambda kw: {}),
+    "Hopper-v5": (hopper_reward, reward_params(**HOPPER, excluded_by_default=True)),
+    "HalfCheetah-v5": (cheetah_reward, reward_params(**CHEETAH, excluded_by_default=True)),
+    "mindgap/NoisyHopper-v0": (hopper_reward, reward_params(**HOPPER, excluded_by_default=False)),
+    "mindgap/NoisyHalfCheetah-v0": (cheetah_reward, reward_params(**CHEETAH, excluded_by_default=False)),
     "MountainCarContinuous-v0": (
         mountain_car_reward,
         lambda kw: {"goal_position": 0.45, "goal_velocity": float(kw.get("goal_velocity", 0.0))},
     ),
 }
-"""id → (reward, kwargs → its params beyond the action bounds)."""
+"""id → (reward, kwargs → its params beyond the action bounds, or None where the env so made has no reward
+the observations determine)."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -90,7 +104,7 @@ class GymWorld(World):
         ``seed``; returns (env, obs)."""
         import gymnasium
 
-        register_lander()
+        register_envs()
         extra = {} if render_mode is None else {"render_mode": render_mode}
         env = gymnasium.make(self.env_id, max_episode_steps=self.horizon, **dict(self.kwargs), **extra)
         obs, _ = env.reset(seed=seed)
@@ -112,7 +126,7 @@ def make_gym_world(env_id: str, **kwargs) -> GymWorld:
     """The :class:`GymWorld` of gymnasium's ``env_id`` made with ``kwargs``; one-line EnvError otherwise."""
     import gymnasium
 
-    register_lander()
+    register_envs()
     try:
         probe = gymnasium.make(env_id, **kwargs)
     except gymnasium.error.Error as e:
@@ -139,7 +153,11 @@ def make_gym_world(env_id: str, **kwargs) -> GymWorld:
     reward = None
     if env_id in REWARDS:
         reward, extra = REWARDS[env_id]
-        params.update({k: jnp.asarray(v, jnp.float32) for k, v in extra(kwargs).items()})
+        more = extra(kwargs)
+        if more is None:
+            reward = None
+        else:
+            params.update({k: jnp.asarray(v, jnp.float32) for k, v in more.items()})
     d = int(np.prod(obs_space.shape))
     obs_bounds = (float(np.min(obs_space.low)), float(np.max(obs_space.high)))
     env = Env(_host_only, _host_only, _host_only, Box((d,), *obs_bounds), Box((len(low),)), reward=reward)
