@@ -14,62 +14,46 @@ VACUUM = "gym:LunarLander-v3,continuous=True"
 WIND = "gym:mindgap/SolarWindLander-v0,gain=2.0,share=0.5"
 
 
-def rollout(spec, actions, seed):
-    """Observations after each of ``actions`` (stops at the episode's end) and gymnasium's rewards."""
-    world = gym_world_from_spec(spec)
-    env, obs = world.make(seed)
-    out, rewards = [obs], []
-    try:
-        for a in actions:
-            o, r, term, trunc, _ = env.step(world.to_env(a))
-            out.append(np.asarray(o, np.float32)), rewards.append(r)
-            if term or trunc:
-                break
-    finally:
-        env.close()
-    return np.stack(out), np.asarray(rewards)
-
-
 def side_actions(n, seed=0):
     a = np.random.default_rng(seed).uniform(-1, 1, (n, 2)).astype(np.float32)
     a[:, 0] = -1.0  # main engine off: the side engines alone move the lander sideways
     return a
 
 
-def test_without_wind_it_is_the_vacuum_bit_for_bit():
+def test_without_wind_it_is_the_vacuum_bit_for_bit(gym_rollout):
     acts = side_actions(80)
     for seed in range(3):
-        calm, _ = rollout("gym:mindgap/SolarWindLander-v0,gain=1.0,share=0.0", acts, seed)
-        vacuum, _ = rollout(VACUUM, acts, seed)
+        _, calm, _ = gym_rollout("gym:mindgap/SolarWindLander-v0,gain=1.0,share=0.0", acts, seed)
+        _, vacuum, _ = gym_rollout(VACUUM, acts, seed)
         np.testing.assert_array_equal(calm, vacuum)
 
 
-def test_a_full_wind_drops_every_left_push():
+def test_a_full_wind_drops_every_left_push(gym_rollout):
     left = np.tile(np.array([[-1.0, -1.0]], np.float32), (60, 1))
     idle = left.copy()
     idle[:, 1] = 0.0
-    dropped, _ = rollout("gym:mindgap/SolarWindLander-v0,gain=1.0,share=1.0", left, seed=4)
-    coasting, _ = rollout(VACUUM, idle, seed=4)
-    pushed, _ = rollout(VACUUM, left, seed=4)
+    _, dropped, _ = gym_rollout("gym:mindgap/SolarWindLander-v0,gain=1.0,share=1.0", left, seed=4)
+    _, coasting, _ = gym_rollout(VACUUM, idle, seed=4)
+    _, pushed, _ = gym_rollout(VACUUM, left, seed=4)
     np.testing.assert_array_equal(dropped, coasting)
     assert pushed[-1, 0] < coasting[-1, 0] - 0.05  # in a vacuum the same pushes move it left
 
 
-def test_right_pushes_are_reinforced():
+def test_right_pushes_are_reinforced(gym_rollout):
     right = np.tile(np.array([[-1.0, 1.0]], np.float32), (30, 1))
-    strong, _ = rollout("gym:mindgap/SolarWindLander-v0,gain=2.0,share=0.0", right, seed=2)
-    plain, _ = rollout(VACUUM, right, seed=2)
+    _, strong, _ = gym_rollout("gym:mindgap/SolarWindLander-v0,gain=2.0,share=0.0", right, seed=2)
+    _, plain, _ = gym_rollout(VACUUM, right, seed=2)
     assert strong[-1, 2] > plain[-1, 2] + 0.1  # more velocity to the right
 
 
-def test_the_wind_drifts_the_lander_right_on_identical_actions():
+def test_the_wind_drifts_the_lander_right_on_identical_actions(gym_rollout):
     acts = side_actions(60, seed=1)
-    drift = [rollout(WIND, acts, s)[0][-1, 0] - rollout(VACUUM, acts, s)[0][-1, 0] for s in range(5)]
+    drift = [gym_rollout(WIND, acts, s)[1][-1, 0] - gym_rollout(VACUUM, acts, s)[1][-1, 0] for s in range(5)]
     assert min(drift) > 0.0 and np.mean(drift) > 0.02, drift
 
 
-def test_the_person_s_reward_is_gymnasium_s_in_a_vacuum():
-    obs, rewards = rollout(VACUUM, side_actions(100, seed=3), seed=0)
+def test_the_person_s_reward_is_gymnasium_s_in_a_vacuum(gym_rollout):
+    _, obs, rewards = gym_rollout(VACUUM, side_actions(100, seed=3), seed=0)
     acts = side_actions(100, seed=3)[: len(rewards)]
     ours = np.asarray(
         [

@@ -17,45 +17,30 @@ RELIABLE = {
 NOISY = {"hopper": "gym:mindgap/NoisyHopper-v0", "cheetah": "gym:mindgap/NoisyHalfCheetah-v0"}
 
 
-def rollout(spec, actions, seed):
-    world = gym_world_from_spec(spec)
-    env, obs = world.make(seed)
-    out, rewards = [obs], []
-    try:
-        for a in actions:
-            o, r, term, trunc, _ = env.step(world.to_env(a))
-            out.append(np.asarray(o, np.float32)), rewards.append(r)
-            if term or trunc:
-                break
-    finally:
-        env.close()
-    return world, np.stack(out), np.asarray(rewards)
-
-
 def actions(n, dim, seed=0):
     return np.random.default_rng(seed).uniform(-1, 1, (n, dim)).astype(np.float32)
 
 
 @pytest.mark.parametrize("body, dim", [("hopper", 3), ("cheetah", 6)])
-def test_without_noise_it_is_the_reliable_env_and_with_it_not(body, dim):
+def test_without_noise_it_is_the_reliable_env_and_with_it_not(body, dim, gym_rollout):
     acts = actions(60, dim)
-    _, calm, _ = rollout(f"{NOISY[body]},share=0.0", acts, seed=1)
-    _, plain, _ = rollout(RELIABLE[body], acts, seed=1)
+    _, calm, _ = gym_rollout(f"{NOISY[body]},share=0.0", acts, seed=1)
+    _, plain, _ = gym_rollout(RELIABLE[body], acts, seed=1)
     np.testing.assert_array_equal(calm, plain)
-    _, noisy, _ = rollout(NOISY[body], acts, seed=1)
+    _, noisy, _ = gym_rollout(NOISY[body], acts, seed=1)
     n = min(len(noisy), len(plain))
     assert np.abs(noisy[:n] - plain[:n]).max() > 0.1
 
 
 @pytest.mark.parametrize("body, dim", [("hopper", 3), ("cheetah", 6)])
-def test_the_person_s_reward_is_gymnasium_s(body, dim):
-    world, obs, rewards = rollout(RELIABLE[body], actions(80, dim, seed=2), seed=0)
+def test_the_person_s_reward_is_gymnasium_s(body, dim, gym_rollout):
+    world, obs, rewards = gym_rollout(RELIABLE[body], actions(80, dim, seed=2), seed=0)
     acts = actions(80, dim, seed=2)[: len(rewards)]
     ours = [float(world.env.reward(jnp.asarray(o), jnp.asarray(a), jnp.asarray(o2), world.params))
             for o, a, o2 in zip(obs[:-1], acts, obs[1:])]  # fmt: skip
     np.testing.assert_allclose(ours, rewards, rtol=1e-4, atol=1e-3)
     # the noise touches velocities, not positions: the noisy env's reward reads the same way
-    noisy, obs, rewards = rollout(NOISY[body], actions(80, dim, seed=2), seed=0)
+    noisy, obs, rewards = gym_rollout(NOISY[body], actions(80, dim, seed=2), seed=0)
     ours = [float(noisy.env.reward(jnp.asarray(o), jnp.asarray(a), jnp.asarray(o2), noisy.params))
             for o, a, o2 in zip(obs[:-1], acts, obs[1:])]  # fmt: skip
     np.testing.assert_allclose(ours, rewards[: len(ours)], rtol=1e-4, atol=1e-3)
