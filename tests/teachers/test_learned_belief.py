@@ -105,3 +105,5 @@ def test_prefbias_runs_on_a_gym_world_with_a_learned_belief(tmp_path, monkeypatc
     # a terrain world states its own beliefs
     assert main(["pebble", "--env", "nav1", "--belief-env", HEAVY, "--fast", "--out", str(tmp_path / "x")]) == 2
     assert "--belief-env is for gym worlds" in capsys.readouterr().err
+    assert main(["pebble", "--env", TRUE, "--belief-env", "Pendulum-v1", "--fast", "--out", str(tmp_path / "y")]) == 2
+    assert "--belief-env takes gym:ID,key=value or a saved model (.npz), got 'Pendulum-v1'" in capsys.readouterr().err

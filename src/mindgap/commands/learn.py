@@ -105,6 +105,8 @@ def with_belief_env(world, args: argparse.Namespace):
         raise ValueError(f"--belief-env is for gym worlds; {world.name} states its beliefs itself (--belief)")
     if spec.endswith(".npz"):
         belief, record = load_learned_belief(spec)
+    elif not spec.startswith("gym:"):
+        raise ValueError(f"--belief-env takes gym:ID,key=value or a saved model (.npz), got {spec!r}")
     else:
         cfg = BeliefFitConfig.fast() if args.fast else BeliefFitConfig()
         belief, record = fit_learned_belief(

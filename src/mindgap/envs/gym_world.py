@@ -13,9 +13,10 @@ MountainCarContinuous-v0, transcribed from gymnasium's ``classic_control`` sourc
 continuous lunar lander's (:func:`~mindgap.envs.lunar.lander_reward`; with the solar wind of
 :mod:`~mindgap.envs.lunar` too), and the MuJoCo hopper's and half-cheetah's where the observation
 holds the x position (:mod:`~mindgap.envs.mujoco_noise`, with or without its hidden noise). Other
-ids get no reward (SAC runs; PEBBLE/DRLHP's simulated person refuses). No world has a
-``log_prob``: learners that need the person's believed dynamics refuse gym worlds
-(:func:`refuse_without_dynamics`).
+ids get no reward (SAC runs; PEBBLE/DRLHP's simulated person refuses). A gym world has no
+exact ``log_prob``: a biased person's belief is learned from a variant of the env
+(:mod:`~mindgap.teachers.learned_belief`), and learners that need it refuse a gym world
+without one (:func:`refuse_without_dynamics`).
 """
 
 from __future__ import annotations

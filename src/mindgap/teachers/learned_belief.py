@@ -5,8 +5,8 @@ gymnasium env has no density at all, so for its simulated person the belief T_H 
 *learned*: a Gaussian dynamics model — the two-headed model f_ψ of
 :mod:`~mindgap.models.gaussian_dynamics`, the family PrefBias's f_φ belongs to — fitted by
 maximum likelihood to transitions of the env as the person imagines it, e.g.
-``gym:LunarLanderContinuous-v3,enable_wind=True`` for a person who expects wind that is
-not there. :func:`with_learned_belief` then gives the true world an ``env.log_prob`` that
+``gym:LunarLander-v3,continuous=True`` for a person who believes the lander flies in a
+vacuum when a wind blows (:mod:`~mindgap.envs.lunar`). :func:`with_learned_belief` then gives the true world an ``env.log_prob`` that
 reads the fitted model, and the preference and expectation teachers score segments with
 it exactly as they score a terrain world's table (Eq. 3.5).
 
