@@ -127,7 +127,9 @@ def train_expected_policy(world: World, belief_params, cfg: ExpectedPolicyConfig
     return actors[int(np.argmax(returns))], returns
 
 
-def train_expected_policy_host(belief_world: GymWorld, cfg: ExpectedPolicyConfig) -> tuple[Params, np.ndarray]:
+def train_expected_policy_host(
+    belief_world: GymWorld, cfg: ExpectedPolicyConfig, progress: bool = False
+) -> tuple[Params, np.ndarray]:
     """π_H on a gym world: SAC on the host (:mod:`~mindgap.algorithms.host_loop`) in the env as the person
     imagines it, ``cfg.seeds`` seeds; the actor of the seed with the best greedy return at the end."""
     from .pbrl import method_config, train
@@ -136,14 +138,19 @@ def train_expected_policy_host(belief_world: GymWorld, cfg: ExpectedPolicyConfig
         "sac", total_steps=cfg.total_steps, chunk=cfg.chunk, eval_every=cfg.total_steps,
         eval_episodes=cfg.eval_episodes, sac=cfg.sac, seed=cfg.seed,
     )  # fmt: skip
-    res = train(belief_world, sac, seeds=cfg.seeds, teacher="true", progress=False)
+    res = train(belief_world, sac, seeds=cfg.seeds, teacher="true", progress=progress)
     returns = np.asarray(res["final_returns"]).mean(1)
     best = int(np.argmax(returns))
     return jax.tree.map(lambda x: x[best], res["carry"].loop.sac.params.actor), returns
 
 
 def expected_policy(
-    world: World, belief_params, cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(), cache_dir=None, belief_world=None
+    world: World,
+    belief_params,
+    cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(),
+    cache_dir=None,
+    belief_world=None,
+    progress: bool = False,
 ) -> Params:
     """π_H's actor for the person whose view of the world is ``belief_params``: from the cache, else trained and stored.
 
@@ -155,6 +162,7 @@ def expected_policy(
         cache_dir: cache root; None uses :func:`cache_root`.
         belief_world: on a gym world, the env as the person imagines it, where π_H is trained
             (:func:`train_expected_policy_host`).
+        progress: a progress bar while π_H trains on the host (the jitted training has none).
     """
     gym = isinstance(world, GymWorld)
     if gym and belief_world is None:
@@ -166,7 +174,7 @@ def expected_policy(
         actor, _ = load_pytree(path, template)
         return actor
     if gym:
-        actor, returns = train_expected_policy_host(belief_world, cfg)
+        actor, returns = train_expected_policy_host(belief_world, cfg, progress)
     else:
         actor, returns = train_expected_policy(world, belief_params, cfg)
     actor = jax.tree.map(lambda t, a: jnp.asarray(a, t.dtype), template, actor)
@@ -181,6 +189,7 @@ def expectation_teacher(
     unbiased: bool = False,
     policy_cfg: ExpectedPolicyConfig = ExpectedPolicyConfig(),
     cache_dir=None,
+    progress: bool = False,
 ) -> ExpectationTeacher:
     """The simulated person of ``world``: belief ``belief`` (default the world's first), π_H from the cache.
 
@@ -188,6 +197,7 @@ def expectation_teacher(
         unbiased: the person knows the true dynamics (Fig. 29); ``belief`` is then ignored.
         policy_cfg: how π_H is trained when the cache does not hold it.
         cache_dir: cache root (see :func:`cache_root`).
+        progress: a progress bar while π_H trains on a gym world.
     """
     if isinstance(world, GymWorld):
         # the person's belief is a learned model of a variant of the env, named by its spec; π_H is trained there
@@ -196,7 +206,8 @@ def expectation_teacher(
             raise ValueError("on a gym world an unbiased person believes a learned model of the true env itself")
         name = belief or next(iter(world.beliefs))
         params = world.belief(name)
-        actor = expected_policy(world, params, policy_cfg, cache_dir, belief_world=gym_world_from_spec(name))
+        belief_world = gym_world_from_spec(name)
+        actor = expected_policy(world, params, policy_cfg, cache_dir, belief_world=belief_world, progress=progress)
         return ExpectationTeacher(params, actor, world.env)
     params = world.params if unbiased else world.belief(belief)
     return ExpectationTeacher(params, expected_policy(world, params, policy_cfg, cache_dir), world.env)

@@ -113,8 +113,9 @@ def run(args: argparse.Namespace) -> int:
             over[name] = getattr(args, name)
     cfg = eps_config(preset, **over)
     policy_cfg = ExpectedPolicyConfig.fast() if args.fast else ExpectedPolicyConfig()
+    unbiased = args.person == "unbiased" and not gym  # on a gym world the unbiased person's belief is learned above
     person = expectation_teacher(
-        world, args.belief, unbiased=args.person == "unbiased" and not gym, policy_cfg=policy_cfg, cache_dir=args.cache
+        world, args.belief, unbiased=unbiased, policy_cfg=policy_cfg, cache_dir=args.cache, progress=not args.quiet
     )
     res = train(
         world,
