@@ -23,3 +23,17 @@ def test_no_frames_is_one_line(tmp_path):
     with pytest.raises(ValueError, match="no frames to animate"):
         save_gif(tmp_path / "c.gif", [])
     assert not (tmp_path / "c.gif").exists()
+
+
+def test_a_mujoco_env_draws_itself_headless():
+    import jax
+
+    from mindgap.envs.gym_world import gym_world_from_spec
+    from mindgap.models.mlp import init_mlp
+    from mindgap.plotting.animation import rollout_frames
+
+    world = gym_world_from_spec("gym:mindgap/NoisyHopper-v0,max_episode_steps=5")
+    actor = init_mlp(jax.random.key(0), (12, 8, 6))
+    frames, _ = rollout_frames(world, actor)
+    assert len(frames) >= 2 and frames[0].ndim == 3
+    assert frames[0].mean() > 10.0  # drawn, not black

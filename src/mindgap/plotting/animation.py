@@ -10,6 +10,7 @@ writes the GIF (it ships with matplotlib).
 from __future__ import annotations
 
 import io
+import os
 from pathlib import Path
 
 import jax
@@ -50,7 +51,12 @@ def _greedy(actor, obs):
 
 
 def rollout_frames(world, actor, seed: int = 0, steps: int | None = None) -> tuple[list[np.ndarray], float]:
-    """Frames of one greedy episode of ``actor`` (SAC actor parameters) on a gym world: (frames, return)."""
+    """Frames of one greedy episode of ``actor`` (SAC actor parameters) on a gym world: (frames, return).
+
+    MuJoCo envs draw with its headless EGL backend unless ``MUJOCO_GL`` says otherwise (its
+    default, GLFW, needs a display).
+    """
+    os.environ.setdefault("MUJOCO_GL", "egl")
     env, obs = world.make(seed, render_mode="rgb_array")
     try:
         frames, ret = [env.render()], 0.0
