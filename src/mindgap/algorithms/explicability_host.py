@@ -37,10 +37,11 @@ def _dists(actors, obs):
     return jax.vmap(actor_dist)(actors, obs)
 
 
-def rollouts(world: GymWorld, actors, episodes: int, seed: int):
+def rollouts(world: GymWorld, actors, episodes: int, seed: int, progress: bool = False):
     """Stochastic rollouts of every seed's actor: ``obs, u, next_obs [S, E, T, ·]``, ``alive [S, E, T]``, returns [S, E].
 
     ``u`` is the pre-tanh action drawn (the env receives tanh u, scaled to its bounds).
+    ``progress``: a bar over the episodes' steps (all seeds and episodes advance together).
     """
     seeds = jax.tree.leaves(actors)[0].shape[0]
     n = seeds * episodes
@@ -50,10 +51,17 @@ def rollouts(world: GymWorld, actors, episodes: int, seed: int):
     done = np.zeros(n, bool)
     cols = {"obs": [], "u": [], "nxt": [], "alive": []}
     returns = np.zeros(n)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=world.horizon, desc=f"explicability rollouts ({n})", unit="step")
     try:
         for _ in range(world.horizon):
             if done.all():
                 break
+            if bar is not None:
+                bar.update()
             mean, log_std = (
                 np.asarray(x).reshape(n, -1) for x in _dists(actors, jnp.asarray(obs.reshape(seeds, episodes, -1)))
             )
@@ -70,6 +78,8 @@ def rollouts(world: GymWorld, actors, episodes: int, seed: int):
     finally:
         for e in envs:
             e.close()
+        if bar is not None:
+            bar.close()
     out = {k: np.stack(v, 1).reshape(seeds, episodes, len(v), *v[0].shape[1:]) for k, v in cols.items()}
     return out["obs"], out["u"], out["nxt"], out["alive"], returns.reshape(seeds, episodes)
 
@@ -85,7 +95,7 @@ def _log_ratios(actors, expected_actor, truth: LearnedBelief, belief, obs, u, nx
 
 
 def explicability_scores_host(
-    world: GymWorld, person, truth: LearnedBelief, actors, episodes: int = 100, seed: int = 20_000
+    world: GymWorld, person, truth: LearnedBelief, actors, episodes: int = 100, seed: int = 20_000, progress=False
 ) -> list[dict]:
     """:func:`~mindgap.algorithms.explicability.explicability_scores` on a gym world (module docstring).
 
@@ -95,7 +105,7 @@ def explicability_scores_host(
             of the world itself), standing for T_A.
         actors: SAC actors with a leading seed axis.
     """
-    obs, u, nxt, alive, returns = rollouts(world, actors, episodes, seed)
+    obs, u, nxt, alive, returns = rollouts(world, actors, episodes, seed, progress)
     log_t, log_pi = (
         np.asarray(x) for x in _log_ratios(actors, person.policy, truth, person.belief, obs, u, nxt, alive)
     )

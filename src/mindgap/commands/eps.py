@@ -132,7 +132,9 @@ def run(args: argparse.Namespace) -> int:
         fit = BeliefFitConfig.fast() if args.fast else BeliefFitConfig()
         truth, _ = fit_learned_belief(world, fit, cache_dir=args.cache)
         actors = carry.loop.sac.params.actor
-        scores = explicability_scores_host(world, person, truth, actors, args.rollouts, seed=20_000 + args.seed)
+        scores = explicability_scores_host(
+            world, person, truth, actors, args.rollouts, seed=20_000 + args.seed, progress=not args.quiet
+        )
     else:
         scores = explicability_scores(
             rng.key(20_000 + args.seed), world, person, carry.loop.sac.params.actor, args.rollouts
