@@ -38,9 +38,11 @@ def _dists(actors, obs):
 
 
 def rollouts(world: GymWorld, actors, episodes: int, seed: int, progress: bool = False):
-    """Stochastic rollouts of every seed's actor: ``obs, u, next_obs [S, E, T, ·]``, ``alive [S, E, T]``, returns [S, E].
+    """Stochastic rollouts of every seed's actor: a dict of ``obs, mean, log_std, u, nxt [S, E, T, ·]``
+    and ``alive [S, E, T]``, and the returns [S, E].
 
-    ``u`` is the pre-tanh action drawn (the env receives tanh u, scaled to its bounds).
+    ``mean, log_std``: the actor's pre-tanh Gaussian at ``obs``; ``u`` the pre-tanh action drawn
+    from it (the env receives tanh u, scaled to its bounds).
     ``progress``: a bar over the episodes' steps (all seeds and episodes advance together).
     """
     seeds = jax.tree.leaves(actors)[0].shape[0]
@@ -49,7 +51,7 @@ def rollouts(world: GymWorld, actors, episodes: int, seed: int, progress: bool =
     envs, first = zip(*(world.make(seed + i) for i in range(n)), strict=True)
     obs = np.stack(first)
     done = np.zeros(n, bool)
-    cols = {"obs": [], "u": [], "nxt": [], "alive": []}
+    cols = {"obs": [], "mean": [], "log_std": [], "u": [], "nxt": [], "alive": []}
     returns = np.zeros(n)
     bar = None
     if progress:
@@ -72,7 +74,7 @@ def rollouts(world: GymWorld, actors, episodes: int, seed: int, progress: bool =
                 o, r, term, trunc, _ = envs[i].step(world.to_env(np.tanh(u[i])))
                 nxt[i], done[i] = np.asarray(o, np.float32).reshape(-1), term or trunc
                 returns[i] += r
-            for k, v in (("obs", obs), ("u", u), ("nxt", nxt), ("alive", alive)):
+            for k, v in (("obs", obs), ("mean", mean), ("log_std", log_std), ("u", u), ("nxt", nxt), ("alive", alive)):
                 cols[k].append(v)
             obs = nxt
     finally:
@@ -81,14 +83,13 @@ def rollouts(world: GymWorld, actors, episodes: int, seed: int, progress: bool =
         if bar is not None:
             bar.close()
     out = {k: np.stack(v, 1).reshape(seeds, episodes, len(v), *v[0].shape[1:]) for k, v in cols.items()}
-    return out["obs"], out["u"], out["nxt"], out["alive"], returns.reshape(seeds, episodes)
+    return out, returns.reshape(seeds, episodes)
 
 
 @jax.jit
-def _log_ratios(actors, expected_actor, truth: LearnedBelief, belief, obs, u, nxt, alive):
+def _log_ratios(expected_actor, truth: LearnedBelief, belief, obs, mean, log_std, u, nxt, alive):
     a = jnp.tanh(u)
     log_t = learned_log_prob(obs, a, nxt, truth) - learned_log_prob(obs, a, nxt, belief)
-    mean, log_std = jax.vmap(lambda actor, o: actor_dist(actor, o))(actors, obs)
     h_mean, h_log_std = actor_dist(expected_actor, obs)
     log_pi = gaussian_log_prob(mean, log_std, u) - gaussian_log_prob(h_mean, h_log_std, u)
     return jnp.sum(jnp.where(alive, log_t, 0.0), -1), jnp.sum(jnp.where(alive, log_pi, 0.0), -1)
@@ -105,10 +106,9 @@ def explicability_scores_host(
             of the world itself), standing for T_A.
         actors: SAC actors with a leading seed axis.
     """
-    obs, u, nxt, alive, returns = rollouts(world, actors, episodes, seed, progress)
-    log_t, log_pi = (
-        np.asarray(x) for x in _log_ratios(actors, person.policy, truth, person.belief, obs, u, nxt, alive)
-    )
+    r, returns = rollouts(world, actors, episodes, seed, progress)
+    cols = (r["obs"], r["mean"], r["log_std"], r["u"], r["nxt"], r["alive"])
+    log_t, log_pi = (np.asarray(x) for x in _log_ratios(person.policy, truth, person.belief, *cols))
     out = []
     for s in range(log_t.shape[0]):
         per = -(log_t[s] + log_pi[s])

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._io import atomic_write
-from ..models.actor import actor_dist
+from ..models.actor import greedy_action
 
 
 def save_gif(path: Path, frames: list[np.ndarray], fps: float = 25.0, scale: float = 0.5, max_frames: int = 150) -> int:
@@ -45,9 +45,7 @@ def save_gif(path: Path, frames: list[np.ndarray], fps: float = 25.0, scale: flo
     return len(images)
 
 
-@jax.jit
-def _greedy(actor, obs):
-    return jnp.tanh(actor_dist(actor, obs)[0])
+_greedy = jax.jit(greedy_action)
 
 
 def rollout_frames(world, actor, seed: int = 0, steps: int | None = None) -> tuple[list[np.ndarray], float]:
