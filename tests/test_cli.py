@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from mindgap.cli import main
+from report_check import check_report
 
 COLUMNS = ["setting", "belief_param", "method", "seed", "d_R", "d_Theta", "d_pi"]
 
@@ -32,6 +33,7 @@ def test_reproduce_table1_fast_writes_its_files(tmp_path, capsys):
         "demo_counts_reversed.png",
     ):
         assert (out / name).stat().st_size > 0, name
+    check_report(out, tmp_path / "report", "table1")
     summary = json.loads((out / "summary.json").read_text())
     assert "tied|reversed|gerel" in summary["stats"]
     # a second run resumes: every job is already there, the table is the same

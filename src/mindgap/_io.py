@@ -14,7 +14,14 @@ def atomic_write(path: Path, data: str | bytes) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     with os.fdopen(fd, "wb" if isinstance(data, bytes) else "w") as f:
         f.write(data)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would hide results from other readers
     os.replace(tmp, path)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def cache_root(cache_dir: str | Path | None = None) -> Path:

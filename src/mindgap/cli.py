@@ -12,6 +12,7 @@ mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see min
 mindgap prefbias --world W --out DIR …   (PrefBias, Algorithm 2; see mindgap.commands.prefbias)
 mindgap eps --world W --lam L --out DIR …   (EPS, Algorithm 3; see mindgap.commands.eps)
 mindgap study serve|check|links|export|examples …  (user studies in the browser; see mindgap.commands.study)
+mindgap report RUN_DIR … [--out DIR]       (one page of results beside the dissertation's; see mindgap.commands.report)
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
 
-    from .commands import design, eps, learn, prefbias, study, worlds
+    from .commands import design, eps, learn, prefbias, report, study, worlds
 
     worlds.add_parser(sub)
     design.add_parser(sub)
@@ -58,6 +59,7 @@ def _parser() -> argparse.ArgumentParser:
     prefbias.add_parser(sub)
     eps.add_parser(sub)
     study.add_parser(sub)
+    report.add_parser(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
     g.add_argument("--domain", default="grid7", help=f"domain: {', '.join(DOMAINS)}")
@@ -122,6 +124,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import study
 
             return study.run(args)
+        if args.command == "report":
+            from .commands import report
+
+            return report.run(args)
         if args.command == "design":
             from .commands import design
 

@@ -12,6 +12,7 @@ from mindgap.experiments import coffee
 from mindgap.experiments.coffee_report import correlation, two_sample
 from mindgap.feedback.demos import RatedDemonstrations
 from mindgap.teachers.rating import RatingTeacher
+from report_check import check_report
 
 COLUMNS = ["participant", "robot", "method", "spill_learned", "wet_weight_learned", "spill_true", "wet_weight_true"]
 
@@ -50,6 +51,8 @@ def test_reproduce_coffee_fast(tmp_path, capsys):
     ):
         assert (out / name).stat().st_size > 0, name
     assert "SPILLS" in (out / "demos.txt").read_text()
+    check_report(out, tmp_path / "report", "coffee")
+    assert json.loads((out / "progress.json").read_text())["missing"] == []
     # a rerun resumes (nothing is refitted) and prints the same tables
     assert main(["reproduce", "coffee", "--fast", "--quiet", "--out", str(out)]) == 0
     assert capsys.readouterr().out.split("results,")[0] == printed.split("results,")[0]

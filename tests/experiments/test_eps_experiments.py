@@ -25,6 +25,7 @@ from mindgap.envs.terrain import load_world
 from mindgap.experiments import eps_common as ec
 from mindgap.experiments import world_measures
 from mindgap.teachers.expectation import ExpectationTeacher
+from report_check import check_report
 
 GREEDY = {"eps": 90.0, "sac": 100.0, "drlhp": -100.0}
 
@@ -114,6 +115,7 @@ def test_eps_fast_tables_figures_shaping_and_resume(stand_ins, tmp_path, capsys)
     assert sorted(calls) == sorted(f"{w}/{m}" for w in ("d1", "d3") for m in learners)
     assert len(list((out / "jobs").glob("*.json"))) == 2 * 7  # + 2 persons and Policy Shaping per world
     assert "| world | EPS | SAC | DRLHP | Policy Shaping |" in printed
+    check_report(out, tmp_path / "report", "eps")
 
     results = rows(out / "results.csv")
     by = {(r["world"], r["method"], r["person"]): r for r in results}
@@ -193,6 +195,7 @@ def test_lambda_fast_routes_and_trend(stand_ins, tmp_path, capsys):
     assert calls == ["d4/eps-lam0", "d4/eps-lam1.5", "d4/eps-lam3"]
     results = rows(out / "results.csv")
     assert [float(r["lam"]) for r in results] == [0.0, 1.5, 3.0]
+    check_report(out, tmp_path / "report", "lambda")
     assert [float(r["greedy_return_mean"]) for r in results] == pytest.approx([90.0, 75.0, 60.0])
     assert all(float(r["required_route"]) == 1.0 for r in results)  # the sandy road
     claims = [c["text"] for c in json.loads((out / "summary.json").read_text())["claims"]]

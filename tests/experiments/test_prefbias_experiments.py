@@ -28,6 +28,7 @@ from mindgap.experiments import world_measures as wm
 from mindgap.models.mlp import init_mlp, init_stack
 from mindgap.models.prefbias_nets import reward_sizes
 from mindgap.planning.terrain_maps import table_noise_map, table_stay_map
+from report_check import check_report
 
 FINAL = {"prefbias": -5.0, "pebble": -90.0, "sac": -1.0}
 RANDOM = -100.0
@@ -133,6 +134,7 @@ def _run_twice(name, out, calls, capsys, n_jobs, extra=()):
     assert len(calls) == n_jobs  # nothing recomputed
     assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
     assert capsys.readouterr().out == printed
+    check_report(out, out.parent / f"{name}-report", name)
     return printed
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import csv
 import io
 import json
-from dataclasses import asdict, is_dataclass
+import time
+from dataclasses import MISSING, asdict, fields, is_dataclass
 from pathlib import Path
 
 from .._io import atomic_write
@@ -37,6 +38,49 @@ def to_jsonable(obj):
     return obj
 
 
+def same_config(stored, config, ignore=()) -> bool:
+    """Whether ``stored`` (a run folder's ``config.json``, parsed) describes ``config`` (a dataclass).
+
+    Equal as JSON, except that a field added to a configuration after the folder was written
+    (absent from ``stored``) is accepted when ``config`` holds that field's default, so run
+    folders stay resumable across releases that add options. ``ignore`` names top-level
+    fields left out of the comparison.
+    """
+    return _same(stored, config, set(ignore))
+
+
+def _same(stored, obj, ignore=frozenset()) -> bool:
+    if is_dataclass(obj) and not isinstance(obj, type):
+        if not isinstance(stored, dict):
+            return False
+        names = {f.name for f in fields(obj)}
+        if set(stored) - names - ignore:
+            return False
+        for f in fields(obj):
+            if f.name in ignore:
+                continue
+            value = getattr(obj, f.name)
+            if f.name not in stored:
+                if not _is_default(f, value):
+                    return False
+            elif not _same(stored[f.name], value):
+                return False
+        return True
+    if isinstance(obj, dict):
+        return isinstance(stored, dict) and set(stored) == set(obj) and all(_same(stored[k], obj[k]) for k in obj)
+    if isinstance(obj, (list, tuple)):
+        return isinstance(stored, list) and len(stored) == len(obj) and all(map(_same, stored, obj))
+    return json.loads(json.dumps(obj)) == stored
+
+
+def _is_default(f, value) -> bool:
+    if f.default is not MISSING:
+        return value == f.default
+    if f.default_factory is not MISSING:
+        return value == f.default_factory()
+    return False
+
+
 class RunFolder:
     """A results folder that remembers finished jobs.
 
@@ -54,10 +98,12 @@ class RunFolder:
             for p in self.jobs.glob("*.json"):
                 p.unlink()
         elif cfg_path.exists() and cfg_path.read_text() != cfg:
-            raise RuntimeError(
-                f"{self.root} holds a run with another configuration; pass --fresh to overwrite it "
-                "or --out to use another folder"
-            )
+            if not same_config(json.loads(cfg_path.read_text()), config):
+                raise RuntimeError(
+                    f"{self.root} holds a run with another configuration; pass --fresh to overwrite it "
+                    "or --out to use another folder"
+                )
+            cfg = cfg_path.read_text()  # the same run, written before options were added: kept as it is
         self.jobs.mkdir(parents=True, exist_ok=True)
         atomic_write(cfg_path, cfg)
 
@@ -70,3 +116,24 @@ class RunFolder:
 
     def save(self, key: str, record: dict) -> None:
         atomic_write(self._path(key), json.dumps(record))
+
+    def write_progress(self, experiment: str, expected: list[str], command: str) -> dict:
+        """Write ``progress.json``: which of the ``expected`` job keys have records, and who wrote them.
+
+        ``mindgap report`` reads it to show a partial run's missing jobs; ``command`` is the
+        command line that finishes (or repeats) the run.
+        """
+        from .. import __version__
+
+        missing = [k for k in expected if not self._path(k).exists()]
+        record = {
+            "experiment": experiment,
+            "jobs": len(expected),
+            "done": len(expected) - len(missing),
+            "missing": missing,
+            "command": command,
+            "version": __version__,
+            "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        }
+        atomic_write(self.root / "progress.json", json.dumps(record, indent=2))
+        return record

@@ -39,6 +39,7 @@ from ..feedback.normalise import normalise_ratings
 from ..feedback.ratings_file import ParticipantRatings, write_participant_ratings
 from ..models.belief import BeliefSpace, factored, per_state_action
 from ..teachers.participants import POPULATIONS, QUESTIONS, Population, Response, recruit
+from . import registry
 from ._runfolder import RunFolder, write_csv
 from .coffee_report import write_outputs
 
@@ -257,6 +258,8 @@ def run(
         records.append(rec)
     if shard is not None:
         return None
+    keys = [f"{robot}/{resp.participant.pid}/{method}/{param}" for robot, resp, method, param in jobs]
+    folder.write_progress("coffee", keys, registry.command("coffee", cfg, out))
     if not records:
         raise RuntimeError(f"{out} has no finished fits to assemble")
     rows = result_rows(cfg, responses, records)

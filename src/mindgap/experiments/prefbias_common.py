@@ -32,6 +32,7 @@ from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
 from ..models.prefbias_nets import posterior_reward
 from ..models.reward_ensemble import RewardConfig, ensemble_reward
 from ..planning.terrain_maps import noise_maps, stay_maps, table_noise_map, table_stay_map
+from . import registry
 from ._runfolder import RunFolder
 from .world_measures import (
     experiment_world,
@@ -349,6 +350,8 @@ def run_experiment(
     records = run_jobs(
         folder, jobs, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only, compute=compute
     )
+    rerun = registry.command(name, cfg, out) if name in registry.NAMES else ""
+    folder.write_progress(name, [job.key for job in jobs], rerun)
     if not any(r["method"] not in references for r in records.values()):
         raise RuntimeError(f"{out} has no finished learner jobs to assemble")
     summary = write_outputs(cfg, out, records)

@@ -35,6 +35,7 @@ from ..metrics import all_metrics
 from ..models.belief import BeliefSpace, per_state_action, tied
 from ..planning.grid_task import GridTask, make_grid
 from ..teachers.rating import RatingTeacher
+from . import registry
 from ._runfolder import RunFolder, write_csv
 from .table1_report import render_figures, summarise
 
@@ -199,10 +200,10 @@ def run(
     data_cache: dict = {}
     records = []
     for sweep, setting, seed, n, method, param in tqdm(jobs, desc="table1", disable=not progress or assemble_only):
-        key = f"{sweep}/{setting}/s{seed}/n{n}/{method}/{param}"
+        key = _key(sweep, setting, seed, n, method, param)
         rec = folder.done(key)
-        if rec is None and sweep == "demos" and n == cfg.demos and seed < cfg.seeds:
-            same = folder.done("main" + key[len("demos") :])  # the main sweep already fitted these data
+        if rec is None and _same_data(cfg, key):
+            same = folder.done(_main_of(key))  # the main sweep already fitted these data
             rec = None if same is None else {**same, "sweep": "demos"}
         if rec is None and assemble_only:
             continue
@@ -238,11 +239,28 @@ def run(
         records.append(rec)
     if shard is not None:
         return None
+    keys = [_key(*job) for job in jobs]
+    expected = [k for k in keys if not (_same_data(cfg, k) and folder.done(k) is None)]
+    folder.write_progress("table1", expected, registry.command("table1", cfg, out))
     if not records:
         raise RuntimeError(f"{out} has no finished jobs to assemble")
     summary = write_outputs(cfg, out, records)
     summary["missing_jobs"] = len(jobs) - len(records)
     return summary
+
+
+def _key(sweep, setting, seed, n, method, param) -> str:
+    return f"{sweep}/{setting}/s{seed}/n{n}/{method}/{param}"
+
+
+def _main_of(key: str) -> str:
+    return "main" + key[len("demos") :]
+
+
+def _same_data(cfg: Table1Config, key: str) -> bool:
+    """Whether a data-efficiency job fits the same data as a main-sweep job (and reads that job's record)."""
+    sweep, _, seed, n = key.split("/")[:4]
+    return sweep == "demos" and int(n[1:]) == cfg.demos and int(seed[1:]) < cfg.seeds
 
 
 def _expand(records, cfg):

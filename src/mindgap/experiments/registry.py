@@ -1,0 +1,89 @@
+"""The named experiments of ``mindgap reproduce``: their modules, presets and rerun commands.
+
+A run folder's ``config.json`` is the experiment's configuration as written by
+:class:`~._runfolder.RunFolder`. :func:`preset_of` tells which preset it is (``full``,
+``fast``, or ``custom`` when it is neither, up to the options the command line lets one
+change) and :func:`command` the ``mindgap reproduce`` line that makes (or finishes) it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import shlex
+from pathlib import Path
+
+from ._runfolder import same_config, to_jsonable
+
+MODULES = {
+    "table1": "table1",
+    "coffee": "coffee",
+    "nav": "prefbias_nav",
+    "priors": "prefbias_priors",
+    "sampling": "prefbias_sampling",
+    "eps": "eps_table",
+    "lambda": "eps_lambda",
+}
+"""Experiment name → module under :mod:`mindgap.experiments` (each has ``preset(name)``)."""
+
+NAMES = tuple(MODULES)
+
+# the configuration fields the command line may change without leaving the preset
+_OPTIONS = {
+    "table1": ("seeds", "demo_count_seeds"),
+    "coffee": ("participants",),
+}
+_TERRAIN_OPTIONS = ("seeds", "worlds")
+
+
+def module(name: str):
+    """The module of the named experiment."""
+    if name not in MODULES:
+        raise ValueError(f"unknown experiment {name!r}: choose from {', '.join(NAMES)}")
+    return importlib.import_module(f".{MODULES[name]}", __package__)
+
+
+def options(name: str) -> tuple[str, ...]:
+    """The configuration fields ``mindgap reproduce NAME`` sets from its flags."""
+    return _OPTIONS.get(name, _TERRAIN_OPTIONS)
+
+
+def preset_of(name: str, config) -> str:
+    """``full``, ``fast`` or ``custom``: which preset ``config`` (a dataclass or its JSON) is."""
+    cfg = _plain(config)
+    for preset in ("full", "fast"):
+        if same_config(cfg, module(name).preset(preset), ignore=options(name)):
+            return preset
+    return "custom"
+
+
+def command(name: str, config, out: str | Path) -> str:
+    """The ``mindgap reproduce`` line that runs (or resumes) this configuration into ``out``.
+
+    For a ``custom`` configuration (not reachable from the command line) it is the nearest
+    preset's line and says so.
+    """
+    cfg = _plain(config)
+    preset = preset_of(name, cfg)
+    ref = _plain(module(name).preset("fast" if preset == "fast" else "full"))
+    words = ["mindgap", "reproduce", name]
+    if preset == "fast":
+        words.append("--fast")
+    if cfg.get("seeds") is not None and "seeds" in options(name) and cfg["seeds"] != ref.get("seeds"):
+        words += ["--seeds", str(cfg["seeds"])]
+    if name == "coffee" and cfg.get("participants") != ref.get("participants"):
+        words += ["--participants", str(cfg["participants"])]
+    worlds = cfg.get("worlds")
+    if "worlds" in options(name) and worlds is not None and list(worlds) != list(ref.get("worlds") or []):
+        if any("," in w for w in worlds):
+            for w in worlds:
+                words += ["--env", w]
+        else:
+            words += ["--worlds", ",".join(worlds)]
+    words += ["--out", str(out)]
+    line = shlex.join(words)
+    return line if preset != "custom" else line + "  # nearest preset: this folder's config.json differs"
+
+
+def _plain(config) -> dict:
+    return json.loads(json.dumps(to_jsonable(config)))

@@ -1,0 +1,274 @@
+"""``mindgap report``: one page gathering experiments' run folders beside the dissertation.
+
+For each run folder it reads ``config.json`` (which experiment, which preset),
+``progress.json`` (the jobs finished and missing, the version and the command that
+finishes the run), ``summary.json`` (the tables and the claims, decided by the experiment
+from its results) and the figures and CSVs the experiment wrote, and renders them with the
+dissertation's numbers (:mod:`~.report_catalog`) into ``report.html`` (self-contained:
+figures embedded) and ``report.md`` (figures and CSVs linked). Templates are Jinja2
+(``templates/report.*.j2``); Markdown tables become HTML with Python-Markdown.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .._io import atomic_write
+from . import registry
+from .report_catalog import CATALOG, claims
+
+_MIME = {".png": "image/png", ".gif": "image/gif", ".svg": "image/svg+xml", ".webp": "image/webp"}
+
+
+@dataclass
+class Run:
+    """One experiment's run folder, as the report shows it."""
+
+    path: Path
+    experiment: str
+    preset: str
+    config: dict
+    summary: dict | None
+    progress: dict | None
+    claims: list[dict] = field(default_factory=list)
+    jobs_done: int = 0
+    jobs_total: int | None = None
+    missing: list[str] = field(default_factory=list)
+    stale: bool = False
+    """The folder holds job records newer than its ``summary.json``."""
+
+    @property
+    def fast(self) -> bool:
+        return self.preset == "fast"
+
+    @property
+    def command(self) -> str:
+        if self.progress and self.progress.get("command"):
+            return self.progress["command"]
+        return registry.command(self.experiment, self.config, self.path)
+
+
+def find_runs(paths) -> list[Run]:
+    """The run folders under ``paths``: each path is a run folder or a folder of them (one level).
+
+    Raises:
+        ValueError: a path that does not exist or holds no run folder (one line, naming it).
+    """
+    runs: list[Run] = []
+    for p in map(Path, paths):
+        if not p.is_dir():
+            raise ValueError(f"{p}: no such folder")
+        if (p / "config.json").exists():
+            runs.append(read_run(p))
+            continue
+        found = sorted(c for c in p.iterdir() if (c / "config.json").exists())
+        if not found:
+            raise ValueError(f"{p}: neither a run folder (no config.json) nor a folder of run folders")
+        runs += [read_run(c) for c in found]
+    order = {name: i for i, name in enumerate(registry.NAMES)}
+    return sorted(runs, key=lambda r: (order.get(r.experiment, len(order)), str(r.path)))
+
+
+def read_run(path: Path) -> Run:
+    """Read one run folder (see the module docstring).
+
+    Raises:
+        ValueError: a folder no named experiment made.
+    """
+    path = Path(path)
+    config = _json(path / "config.json")
+    summary = _json(path / "summary.json") if (path / "summary.json").exists() else None
+    progress = _json(path / "progress.json") if (path / "progress.json").exists() else None
+    name = _experiment(path, config, summary, progress)
+    run = Run(path, name, registry.preset_of(name, config), config, summary, progress)
+    records = list((path / "jobs").glob("*.json"))
+    run.jobs_done = len(records)
+    if progress:
+        run.jobs_total = progress["jobs"]
+        run.jobs_done = progress["done"]
+        run.missing = list(progress["missing"])
+    if summary is not None:
+        run.claims = claims(name, summary)
+        newest = max((p.stat().st_mtime for p in records), default=0.0)
+        run.stale = newest > (path / "summary.json").stat().st_mtime
+    return run
+
+
+def _json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ValueError(f"{path}: not readable JSON ({e})") from None
+
+
+def _experiment(path: Path, config: dict, summary: dict | None, progress: dict | None) -> str:
+    for source in (progress, summary):
+        if source and source.get("experiment") in registry.NAMES:
+            return source["experiment"]
+    if summary and "table2" in summary:
+        return "coffee"
+    if summary and "checks" in summary and "basins" in summary:
+        return "table1"
+    for name in registry.NAMES:
+        if registry.preset_of(name, config) != "custom":
+            return name
+    raise ValueError(f"{path}: not a run folder of a named experiment ({', '.join(registry.NAMES)})")
+
+
+def tally(runs: list[Run]) -> dict:
+    """Claims held / not held / undecided over the full-preset runs (fast runs' numbers mean nothing)."""
+    counted = [c for r in runs if not r.fast for c in r.claims]
+    return {
+        "held": sum(c["held"] is True for c in counted),
+        "failed": sum(c["held"] is False for c in counted),
+        "undecided": sum(c["held"] is None for c in counted),
+    }
+
+
+def _context(runs: list[Run], out: Path, embed: bool) -> dict:
+    import markdown as md
+
+    def files(run, patterns):
+        seen = []
+        for pat in patterns:
+            seen += [p for p in sorted(run.path.glob(pat)) if p not in seen]
+        return seen
+
+    def link(p: Path) -> str:
+        return Path(os.path.relpath(p.resolve(), out.resolve())).as_posix()
+
+    def picture(p: Path) -> str:
+        if not embed:
+            return link(p)
+        return f"data:{_MIME[p.suffix.lower()]};base64," + base64.b64encode(p.read_bytes()).decode()
+
+    sections = []
+    for run in runs:
+        entry = CATALOG[run.experiment]
+        items = []
+        table_md = (run.summary or {}).get("table_md", "")
+        for item in entry.items:
+            figs = [f for f in files(run, item.figures) if f.suffix.lower() in _MIME]
+            ours = "\n\n".join(b for b in table_blocks(table_md) if any(w in b for w in item.tables))
+            items.append(
+                {
+                    "name": item.name,
+                    "ours_md": ours,
+                    "ours_html": md.markdown(ours, extensions=["tables"]) if ours else "",
+                    "paper_md": item.paper,
+                    "paper_html": md.markdown(item.paper, extensions=["tables"]),
+                    "figures": [{"src": picture(f), "name": f.name} for f in figs],
+                    "files": [{"href": link(f), "name": f.name} for f in files(run, item.files)],
+                }
+            )
+        sections.append(
+            {
+                "run": run,
+                "title": entry.title,
+                "section": entry.section,
+                "anchor": f"{run.experiment}-{run.path.name}",
+                "items": items,
+                "table_md": table_md.strip(),
+                "table_html": md.markdown(table_md, extensions=["tables"]),
+                "config_json": json.dumps(run.config, indent=2, sort_keys=True),
+                "config_href": link(run.path / "config.json"),
+                "path": link(run.path),
+            }
+        )
+    from .. import __version__
+
+    return {
+        "sections": sections,
+        "tally": tally(runs),
+        "version": __version__,
+        "written": time.strftime("%Y-%m-%d %H:%M %Z"),
+    }
+
+
+def table_blocks(table_md: str) -> list[str]:
+    """``table.md`` cut into its captioned tables: each block is the text before a table and the table."""
+    blocks, lines, in_table = [], [], False
+    for line in table_md.strip().splitlines():
+        is_row = line.lstrip().startswith("|")
+        if in_table and not is_row:
+            blocks.append("\n".join(lines).strip())
+            lines = []
+        in_table = is_row
+        lines.append(line)
+    if lines:
+        blocks.append("\n".join(lines).strip())
+    return [b for b in blocks if b]
+
+
+def _env():
+    import jinja2
+
+    return jinja2.Environment(
+        loader=jinja2.PackageLoader("mindgap.experiments", "templates"),
+        autoescape=jinja2.select_autoescape(["html.j2"]),
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+
+
+def write_report(paths, out: str | Path = "report") -> tuple[Path, Path, list[Run]]:
+    """Write ``report.html`` and ``report.md`` for the run folders under ``paths`` into ``out``.
+
+    Returns:
+        The two files' paths and the runs they show.
+    """
+    runs = find_runs(paths)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = _env()
+    html = env.get_template("report.html.j2").render(**_context(runs, out, embed=True))
+    text = env.get_template("report.md.j2").render(**_context(runs, out, embed=False))
+    atomic_write(out / "report.html", html)
+    atomic_write(out / "report.md", text)
+    return out / "report.html", out / "report.md", runs
+
+
+def claims_markdown(runs: list[Run], relative_to: str | Path | None = None) -> str:
+    """The claims of the full-preset runs as one Markdown table (✓ held, ✗ not, – undecided).
+
+    With ``relative_to`` (the folder of the file the table goes into), each experiment links
+    to its run folder.
+    """
+    lines = ["| experiment | claim | measured | |", "|---|---|---|---|"]
+    for run in runs:
+        if run.fast:
+            continue
+        entry = CATALOG[run.experiment]
+        where = run.experiment
+        if relative_to is not None:
+            href = Path(os.path.relpath(run.path.resolve(), Path(relative_to).resolve())).as_posix()
+            where = f"[{run.experiment}]({href}/)"
+        for c in run.claims:
+            mark = {True: "✓", False: "✗", None: "–"}[c["held"]]
+            lines.append(f"| {where} ({entry.section}) | {c['text']} | {c['measured']} | {mark} |")
+    return "\n".join(lines) + "\n"
+
+
+CLAIMS_START, CLAIMS_END = "<!-- claims:start -->", "<!-- claims:end -->"
+
+
+def update_claims_block(path: str | Path, runs: list[Run]) -> None:
+    """Replace the lines between ``path``'s claims markers with :func:`claims_markdown` of ``runs``.
+
+    Raises:
+        ValueError: the file lacks the markers (nothing is written).
+    """
+    path = Path(path)
+    text = path.read_text()
+    if CLAIMS_START not in text or CLAIMS_END not in text:
+        raise ValueError(f"{path}: no {CLAIMS_START} … {CLAIMS_END} lines to put the claims between")
+    head, rest = text.split(CLAIMS_START, 1)
+    _, tail = rest.split(CLAIMS_END, 1)
+    block = claims_markdown(runs, relative_to=path.parent)
+    atomic_write(path, f"{head}{CLAIMS_START}\n{block}{CLAIMS_END}{tail}")

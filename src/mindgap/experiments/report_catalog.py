@@ -1,0 +1,274 @@
+"""What the dissertation reports for each experiment, and how each run folder's claims are read.
+
+:data:`CATALOG` holds, per named experiment, the dissertation's tables (its numbers) or a
+description of its figures, and which files of a run folder show ours beside them.
+:func:`claims` turns a run folder's ``summary.json`` into claims ``{text, held, measured}``:
+the PrefBias and EPS experiments write their claims themselves; Table 1's ``checks`` and
+the coffee study's ``orderings`` are put in the same form here, with the numbers that
+decide them.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Item(NamedTuple):
+    """One table or figure of the dissertation and where a run folder shows ours."""
+
+    name: str
+    """``Table 1``, ``Figs. 5–7``, …"""
+    paper: str
+    """The dissertation's numbers (a Markdown table) or what its figure shows."""
+    figures: tuple[str, ...] = ()
+    """Glob patterns of the run folder's figures that show ours."""
+    files: tuple[str, ...] = ()
+    """Glob patterns of the run folder's data files (CSV, JSON) behind ours."""
+    tables: tuple[str, ...] = ()
+    """Words that pick ours out of the run's ``table.md`` (the tables whose caption holds one)."""
+
+
+class Entry(NamedTuple):
+    title: str
+    section: str
+    items: tuple[Item, ...]
+
+
+_TABLE1 = """| | d(R) | d(Θ) | d(π) | d(R) | d(Θ) | d(π) |
+|---|---|---|---|---|---|---|
+| | *reversed* | | | *rotated* | | |
+| GeReL | 12.17 | 0.06 | 0.11 | 12.61 | 0.08 | 0.23 |
+| SERD | 16.43 | 0.38 | 0.47 | 17.62 | 0.57 | 0.63 |
+| GeReL⁻ | 26.72 | 0.56 | 1.46 | 23.96 | 0.91 | 1.43 |
+| MaxEnt-IRL | 23.32 | 0.56 | 1.68 | 28.02 | 0.91 | 1.55 |"""
+
+_TABLE2 = """| question | p | mobile | humanoid |
+|---|---|---|---|
+| (Q1) domain dynamics | 0.047 | 2.92 | 3.58 |
+| (Q2) weight preference | 0.027 | 2.83 | 3.67 |"""
+
+_TABLE3 = """| domain | EPS | SAC | DRLHP | PS |
+|---|---|---|---|---|
+| D1 | 95.53 (1.88) | 97.46 (1.53) | 74.51 (29.92) | 93.91 (3.55) |
+| D2 | 94.07 (2.43) | 95.65 (1.98) | 23.28 (43.71) | 95.55 (3.17) |
+| D3 | 96.80 (1.16) | 94.47 (2.77) | −50.76 (56.49) | −178.76 (63.88) |
+| D4 | 92.37 (1.80) | 93.27 (2.03) | 26.52 (49.02) | 90.11 (14.79) |"""
+
+CATALOG: dict[str, Entry] = {
+    "table1": Entry(
+        "GeReL on the grid world",
+        "§2.3.1",
+        (
+            Item(
+                "Table 1",
+                "L2 distance of the learned reward d(R) and belief d(Θ) to the truth, and the KL "
+                "divergence d(π) of the person's expected policy, 7×7 grid:\n\n" + _TABLE1,
+                ("rewards_*.png",),
+                ("results.csv", "summary.json"),
+                ("Belief parameterisation",),
+            ),
+            Item(
+                "Figs. 5–7",
+                "d(R), d(Θ) and d(π) of the four methods (and the prior) as the number of rated "
+                "demonstrations grows: GeReL lowest throughout.",
+                ("demo_counts_*.png", "curves_*.png"),
+                ("demo_counts.csv", "curves.csv", "restarts.csv"),
+                ("Data efficiency",),
+            ),
+        ),
+    ),
+    "coffee": Entry(
+        "The coffee-robot user study",
+        "§2.3.2",
+        (
+            Item(
+                "Table 2",
+                "Mean Likert answers before the demonstrations (real participants):\n\n" + _TABLE2,
+                ("ratings_by_demo.png",),
+                ("participants.csv", "ratings.csv"),
+                ("Table 2",),
+            ),
+            Item(
+                "Fig. 12",
+                "Feature weights and spill probability learned per participant: GeReL's spill "
+                "probability (umbrella while holding coffee) is larger for the humanoid than for the "
+                "mobile robot, as the participants answered; GeReL⁻ cannot separate the two.",
+                ("fig12.png",),
+                ("results.csv",),
+                ("Learned per robot",),
+            ),
+        ),
+    ),
+    "nav": Entry(
+        "PrefBias on the navigation tasks",
+        "§3.4.2.1, §3.4.3",
+        (
+            Item(
+                "Figs. 16–17",
+                "Learning curves on Navigation 1 and 2 under the true reward: PrefBias reaches SAC's "
+                "return, PEBBLE stays below it.",
+                ("curves_*.png",),
+                ("curves.csv", "results.csv"),
+            ),
+            Item(
+                "Fig. 21",
+                "Trajectories: on Navigation 1 PEBBLE takes the sandy corridor, PrefBias the ice as SAC "
+                "does; on Navigation 2 PEBBLE keeps away from the pit, PrefBias takes the shortcut.",
+                ("trajectories_*.png",),
+                ("results.csv",),
+            ),
+        ),
+    ),
+    "priors": Entry(
+        "PrefBias: the belief prior",
+        "§3.4.3.1",
+        (
+            Item(
+                "Figs. 22–24",
+                "A prior centred on a learned model of the true dynamics gives a lower belief error "
+                "(Fig. 22), a lower reward error (Fig. 23) and a higher return (Fig. 24) than a random prior.",
+                ("*.png",),
+                ("results.csv", "curves.csv"),
+            ),
+        ),
+    ),
+    "sampling": Entry(
+        "PrefBias: query sampling",
+        "§3.4.3.2",
+        (
+            Item(
+                "§3.4.3.2 (text)",
+                "Uniform, disagreement, entropy and preference-disagreement sampling: the "
+                "preference-disagreement sampler is slightly better, but not much.",
+                ("*.png",),
+                ("results.csv", "curves.csv"),
+            ),
+        ),
+    ),
+    "eps": Entry(
+        "Explicable policy search on D1–D4",
+        "§4.4.1",
+        (
+            Item(
+                "Table 3",
+                "Average return over 100 rollouts, mean (std):\n\n" + _TABLE3,
+                (),
+                ("results.csv",),
+                ("(Table 3)",),
+            ),
+            Item(
+                "Table 4",
+                "Explicability score (Eq. 4.4). The dissertation's Table 4 repeats Table 3's numbers; "
+                "its text says EPS has the highest explicability score in every domain.",
+                (),
+                ("results.csv",),
+                ("(Table 4)",),
+            ),
+            Item(
+                "Figs. 27–28",
+                "Trajectories of EPS, SAC, DRLHP and Policy Shaping beside the person's expectation: "
+                "EPS detours round the pit in D1–D2 and takes the expected road in D3–D4; the learned "
+                "surrogate rewards.",
+                ("trajectories.png", "surrogate_*.png"),
+                ("person.csv",),
+            ),
+            Item(
+                "Figs. 29–30",
+                "Without a biased person EPS recovers SAC's behaviour and learns as fast.",
+                ("unbiased.png", "curves_*.png"),
+                ("curves.csv",),
+            ),
+        ),
+    ),
+    "lambda": Entry(
+        "EPS: the reconciliation weight λ",
+        "§4.4.1.4",
+        (
+            Item(
+                "Fig. 31",
+                "The lower λ, the closer EPS's behaviour to SAC's; the higher, the closer to the person's expectation.",
+                ("*.png",),
+                ("results.csv", "curves.csv"),
+            ),
+        ),
+    ),
+}
+
+_LABELS = {"gerel": "GeReL", "serd": "SERD", "gerel-minus": "GeReL⁻", "maxent-irl": "MaxEnt-IRL"}
+_METRIC = {"d_R": "d(R)", "d_Theta": "d(Θ)", "d_pi": "d(π)"}
+
+
+def claims(name: str, summary: dict) -> list[dict]:
+    """The claims of a run folder's ``summary.json``: ``{text, held, measured}`` each.
+
+    ``held`` is ``True``, ``False`` or ``None`` (not decidable from this run).
+    """
+    if name == "table1":
+        return _table1_claims(summary)
+    if name == "coffee":
+        return _coffee_claims(summary)
+    return [dict(c) for c in summary.get("claims", [])]
+
+
+def _table1_claims(summary: dict) -> list[dict]:
+    stats, out = summary.get("stats", {}), []
+
+    def mean(key, method, metric):
+        e = stats.get(f"{key}|{method}")
+        return e[metric][0] if e else float("nan")
+
+    for key, checks in summary.get("checks", {}).items():
+        param, setting = key.split("|")
+        where = f"{setting}, {param} belief"
+        for check, held in checks.items():
+            if check.startswith("gerel_lowest_"):
+                m = check[len("gerel_lowest_") :]
+                others = {_LABELS[o]: mean(key, o, m) for o in _LABELS if o != "gerel"}
+                best = min(others, key=others.get)
+                text = f"{where}: GeReL has the lowest {_METRIC[m]} of the four methods"
+                measured = f"GeReL {mean(key, 'gerel', m):.3g}, best other {best} {others[best]:.3g}"
+            elif check == "gerel_beats_minus_and_maxent":
+                text = f"{where}: GeReL beats GeReL⁻ and MaxEnt-IRL on d(R), d(Θ) and d(π)"
+                measured = ", ".join(
+                    f"{_METRIC[m]} {mean(key, 'gerel', m):.3g} vs "
+                    f"{min(mean(key, 'gerel-minus', m), mean(key, 'maxent-irl', m)):.3g}"
+                    for m in _METRIC
+                )
+            elif check == "unaware_corr_negative":
+                text = f"{where}: GeReL⁻ and MaxEnt-IRL learn a reward anti-correlated with the truth"
+                measured = f"corr {mean(key, 'gerel-minus', 'corr_R'):.2f} and {mean(key, 'maxent-irl', 'corr_R'):.2f}"
+            elif check.startswith("tied_"):
+                metric, bound = check[len("tied_") :].split("<=")
+                text = f"{where}: GeReL's {_METRIC[metric]} ≤ {bound}"
+                measured = f"{mean(key, 'gerel', metric):.3g}"
+            else:
+                text, measured = f"{where}: {check}", ""
+            out.append({"text": text, "held": bool(held), "measured": measured})
+    return out
+
+
+_COFFEE = {
+    "spill_humanoid_gt_mobile": "learns a higher spill probability for the humanoid than for the mobile robot",
+    "wet_penalty_humanoid_gt_mobile": "learns a higher wet penalty for the humanoid",
+    "wet_per_coffee_humanoid_gt_mobile": "learns a higher wet penalty per unit of coffee for the humanoid",
+    "spill_order_matches_truth": "orders the robots' spill probabilities as the participants' own beliefs do",
+    "wet_order_matches_truth": "orders the wet penalties as the participants' own rewards do",
+    "wet_per_coffee_order_matches_truth": "orders wet penalty per coffee as the participants' own rewards do",
+}
+
+
+def _coffee_claims(summary: dict) -> list[dict]:
+    out = []
+    learned = summary.get("learned", {})
+    for fit, orderings in summary.get("orderings", {}).items():
+        for check, held in orderings.items():
+            if held is None:
+                continue
+            what = check.split("_humanoid")[0].split("_order")[0]
+            key = {"spill": "spill", "wet_penalty": "wet_penalty", "wet": "wet_penalty"}.get(what, what)
+            per = learned.get(fit, {})
+            measured = ""
+            if per and key in per.get("humanoid", {}):
+                measured = f"humanoid {per['humanoid'][key][0]:.3g}, mobile {per['mobile'][key][0]:.3g}"
+            out.append({"text": f"{fit} {_COFFEE.get(check, check)}", "held": bool(held), "measured": measured})
+    return out
