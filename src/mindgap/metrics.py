@@ -1,4 +1,4 @@
-"""Evaluation metrics of Table 1 (SPEC §6).
+"""Evaluation metrics of Table 1 (§2.3.1).
 
 - ``d(R) = ‖R̂ − R_H‖₂`` over states;
 - ``d(Θ)`` = mean over ``(s, a)`` of ``‖θ̂_sa − θ_sa‖₂`` (full next-state vectors);
