@@ -1,7 +1,7 @@
 """Does PrefBias's fit alone recover nav1's belief from the person's answers?
 
 The full nav run showed f_φ widening its Gaussian instead of learning the person's stay
-probability on the ice (docs/identifiability.md, "Full runs on the redesigned worlds"). This
+probability on the ice (docs/experiments/identifiability.md, "Full runs on the redesigned worlds"). This
 takes the loop out: 800 answers simulated exactly as the design check's ML fit does
 (planning/belief_fit.simulate_queries), f_ψ trained on their transitions, then
 prefbias_inference.fit under config variants, printing f_φ's P(not moving) and move noise on

@@ -26,3 +26,25 @@ from .planning.grid_task import make_grid as make_grid
 from .teachers.rating import RatingTeacher as RatingTeacher
 
 __version__ = "0.1.0"
+
+__all__ = [
+    "all_metrics",
+    "Box",
+    "Discrete",
+    "Env",
+    "factored",
+    "fit_gerel",
+    "GeReLConfig",
+    "load_world",
+    "make_coffee",
+    "make_grid",
+    "move_targets",
+    "per_state_action",
+    "random_demonstrations",
+    "RatingTeacher",
+    "rng",
+    "Step",
+    "TabularMDP",
+    "tied",
+    "World",
+]

@@ -29,7 +29,7 @@ from mindgap.teachers.preference import TeacherConfig
 
 # An icy shortcut to the goal and a sandy detour, a fixed horizon and a state-form reward. The walls
 # slide: under the default bump rule a push into a wall leaves the robot where it was, a second
-# outcome on the ice even where the truth never sticks (docs/identifiability.md).
+# outcome on the ice even where the truth never sticks (docs/experiments/identifiability.md).
 WORLD = """
 name = "corridors"
 horizon = 40

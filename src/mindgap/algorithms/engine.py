@@ -49,8 +49,7 @@ from .sac_loop import LoopState, dims, evaluate, loop_init, run_chunk
 EXPLORATION = {"noise_color": 1.0, "entropy_bonus": 1.0}
 """How every learner's SAC explores by default (:attr:`Schedule.sac`: SAC, PEBBLE, DRLHP,
 PrefBias, EPS): pink action noise and a decaying state-entropy bonus (see
-:class:`~mindgap.algorithms.sac.SACConfig`). With plain white noise one seed in five never
-found the goal of nav2 and d2–d4 with the true reward (docs: learning from preferences)."""
+:class:`~mindgap.algorithms.sac.SACConfig`). Why: docs/experiments/pbrl.md, "SAC, the oracle"."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """EPS's configuration and presets (Algorithm 3's knobs on the engine's schedule).
 
 The run itself is :mod:`~mindgap.algorithms.eps`; the reasons behind defaults the
-dissertation leaves open are in docs/eps.md.
+dissertation leaves open are in docs/methods/eps.md.
 """
 
 from __future__ import annotations
@@ -48,10 +48,10 @@ class EPSConfig(Schedule):
     """s_H: the per-step spread, in nats, of the person's log T_H + log π_H that one unit of the
     standardised u_H stands for; the policy entropy and H_T are weighted λ/s_H (α = λ·reward_scale/s_H)
     so that u_H + H_T + H_π keeps the balance of the KLs it comes from. One value for every world
-    (docs/eps.md)."""
+    (docs/methods/eps.md)."""
     centre_entropy: bool = True
     """Subtract H_T's mean over the buffer, as u_H is centred: H_T's constant depends on the units
-    of the state and would act as a per-step cost or bonus (docs/eps.md)."""
+    of the state and would act as a per-step cost or bonus (docs/methods/eps.md)."""
 
     surrogate: str = "learned"
     """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:

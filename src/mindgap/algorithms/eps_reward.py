@@ -20,13 +20,13 @@ which preferences cannot reveal (Bradley–Terry answers fix no scale, and the e
 rewards are bounded). Weighting H_π by λ would then make the KL-optimal policy π_H tempered
 by ``s_H`` (each action dimension ``√s_H`` times wider), so H_π is weighted ``λ / s_H``:
 ``α = λ·c / s_H`` with one fixed ``s_H`` for every world (``EPSConfig.nats_per_unit``,
-7 nats; how it was chosen: docs/eps.md).
+7 nats; how it was chosen: docs/methods/eps.md).
 
 Scale of H_T. The same argument holds for the dynamics part of the KL: u_H's E log T_H and
 H_T together are −KL(T_A ‖ T_H) (Eq. 4.4), so H_T is weighted ``λ / s_H`` as well
 (``h_weight``): the reward's λ-term is ``λ (u_H + H_T / s_H)``, one scale for both halves of
 one KL. Weighting H_T by λ while u_H's log T_H is divided by its spread counted the entropy
-about seven times as much as the belief it is the other half of (docs/eps.md).
+about seven times as much as the belief it is the other half of (docs/methods/eps.md).
 
 Normalisation of u_H (§4.3.3: "we simply normalize the learned rewards"): Bradley–Terry
 fixes u_H only up to an additive constant per step and a scale tied to the person's β,

@@ -1,7 +1,7 @@
-"""The simulated person's expected policy π_H for the terrain worlds (SPEC §4), trained once and cached.
+"""The simulated person's expected policy π_H for the terrain worlds (§4.3.3), trained once and cached.
 
-SPEC §4: π_H is "soft-optimal for r_H under T_H (for terrain worlds, a SAC policy trained
-in the belief world; cache it)". It is therefore SAC — the maximum-entropy, i.e. soft,
+π_H is the person's expectation of the agent: soft-optimal for r_H under their belief T_H.
+For a terrain world it is therefore SAC — the maximum-entropy, i.e. soft,
 optimum — trained on the world's reward with the person's dynamics table (the person's
 reward is the world's, as in the dissertation's d1–d4: only the belief about the dynamics
 differs). A policy from value iteration on the discretised belief world would give an
@@ -9,10 +9,10 @@ action distribution over the 16 compass actions only, with no density over conti
 actions, which the score of :mod:`~mindgap.teachers.expectation` and the explicability
 score (Eq. 4.4) need; SAC's tanh-Gaussian actor has one (:func:`expected_log_prob`).
 
-SAC on the sparse-goal terrain worlds fails on some seeds (README: 1–3 of 5 reach the
-goal in 30 000 steps). :func:`train_expected_policy` therefore trains ``seeds`` seeds in
-one vmapped program and keeps the one whose greedy policy earns the most in the belief
-world — the person's expectation of a competent agent, not of one that idles.
+SAC on the sparse-goal terrain worlds fails on some seeds (docs/experiments/pbrl.md).
+:func:`train_expected_policy` therefore trains ``seeds`` seeds in one vmapped program and
+keeps the one whose greedy policy earns the most in the belief world — the person's
+expectation of a competent agent, not of one that idles.
 
 Training costs minutes, so :func:`expected_policy` stores the actor under
 ``<cache>/expected_policy/<hash>.npz``; the hash covers every array of the belief world
@@ -59,7 +59,7 @@ class ExpectedPolicyConfig:
     eval_episodes: int = 20
     """Greedy episodes that rank the seeds."""
     sac: SACConfig = SACConfig(hidden=(64, 64), learning_starts=5000)
-    """SAC of π_H; 5000 random steps helped SAC find the goal of d1 most often (README)."""
+    """SAC of π_H; 5000 random steps first, which found d1's goal in the most seeds (docs/experiments/pbrl.md)."""
     seed: int = 0
     """Base seed."""
 

@@ -46,13 +46,9 @@ from .engine import Learner, Schedule, preference_teacher, run
 
 METHODS = ("sac", "pebble", "drlhp")
 ABSORBING_DEFAULT = {"sac": False, "pebble": True, "drlhp": False}
-"""Whether each method's preset (:func:`method_config`) gives the learned reward absorbing states.
-
-PEBBLE: on, by measurement (true teacher, 800 queries, 80 a round, 5 seeds, with
-:data:`EXPLORATION`): d1 (60 000 steps) 100.1 ± 0.7, 99% of the SAC oracle; nav1
-(30 000 steps) −1.2 ± 0.2, 99% of the oracle's improvement over never arriving. With
-plain exploration it lifted d1 from −93.8 ± 2.5 to 56.8 ± 79.1 but left one nav1 seed
-unstable (−9.5 ± 17.7 against −1.0 ± 0.4). DRLHP: off, unmeasured with it.
+"""Whether each method's preset (:func:`method_config`) gives the learned reward absorbing states:
+on for PEBBLE, off for DRLHP (not measured with them). The measurements behind it:
+docs/experiments/pbrl.md, "Absorbing states on d1".
 """
 
 

@@ -49,11 +49,9 @@ class PrefBiasLoopConfig(Schedule):
     """One PrefBias run (all seeds share it; hashable, a static jit argument); the schedule's fields are :class:`Schedule`'s."""
 
     total_steps: int = 50_000
-    """Environment steps per seed. Longer than the engine's 40 000: the reward and the belief still
-    change until the last feedback round (step 22 000 with 800 queries, 80 a round). With the stay
-    head and absorbing states, 30 000 steps left four nav1 seeds of five short of the goal and
-    three nav2 seeds frozen against walls; 50 000 steps brought all five to the goal in both (nav1
-    on its first belief; README, "PrefBias experiments")."""
+    """Environment steps per seed. Longer than the engine's 40 000, so that SAC trains long on the final
+    reward: the reward and the belief still change until the last feedback round (step 22 000 with
+    800 queries, 80 a round); docs/experiments/prefbias.md."""
     method: str = "prefbias"
     """Always 'prefbias' (the engine's schedule reads it)."""
     prefbias: PrefBiasConfig = PrefBiasConfig()

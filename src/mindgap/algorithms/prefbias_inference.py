@@ -70,9 +70,9 @@ class PrefBiasConfig:
     reward_hidden: tuple[int, ...] = (64, 64)
     """Hidden widths of the reward network r_w."""
     absorbing: bool = True
-    """Give r_w absorbing states (a learned r_abs per terminal state; Kostrikov et al. 2019). Without them
-    a segment that ends in nav2's pit after three steps is compared with ten-step segments as a shorter
-    sum, and four nav2 seeds of five learned to dive into the pit (README, "PrefBias experiments")."""
+    """Give r_w absorbing states (a learned r_abs per terminal state; Kostrikov et al. 2019), so that a
+    segment that ends early (in a pit, at the goal) is not compared with longer segments as a shorter
+    sum (docs/methods/prefbias.md)."""
     absorbing_state: str = "terminal"
     """With ``absorbing``: one absorbing state per terminal state (``terminal``, radial basis features of s_T;
     worlds of at most three observation dimensions) or one for all (``single``, DAC's; any world)."""
@@ -81,9 +81,7 @@ class PrefBiasConfig:
     stay_head: bool = True
     """Give f_ψ and f_φ a third head, the probability of not moving at all (s' = s: stuck or
     bumped), so that such steps are a point mass rather than a far tail of the Gaussian
-    (:mod:`~mindgap.models.gaussian_dynamics`). On nav1 it cuts the belief error from 0.320 to
-    0.143 cells; with absorbing states it needs the longer schedule of
-    :class:`~mindgap.algorithms.prefbias.PrefBiasLoopConfig` (README, "PrefBias experiments")."""
+    (:mod:`~mindgap.models.gaussian_dynamics`; docs/methods/prefbias.md)."""
     belief_prior: str = "dynamics"
     """Centre of p(φ): 'dynamics' (f_ψ's parameters) or 'random' (a random initialisation)."""
     reward_prior_std: float = 1.0

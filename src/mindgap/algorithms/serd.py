@@ -1,4 +1,4 @@
-"""The SERD variant (Herman et al. 2016, as adapted in §2.3.1 and SPEC §2).
+"""The SERD variant (Herman et al. 2016, as adapted in §2.3.1).
 
 Point estimates of the reward weights ``w`` and of belief logits ``ℓ`` (``θ = softmax(ℓ)``
 per factor, over the same belief space as GeReL) that maximise the rating likelihood of

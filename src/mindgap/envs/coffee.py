@@ -1,4 +1,4 @@
-"""Boutilier's coffee robot (§2.3.2, Fig. 8; SPEC §3.1) as a factored tabular MDP.
+"""Boutilier's coffee robot (§2.3.2, Fig. 8) as a factored tabular MDP.
 
 Six binary variables give 64 states, ``s = Σ_i v_i · 2^i`` in the order of
 :data:`VARIABLES`: robot in the café (else in the office), robot wet, robot holds an
@@ -22,7 +22,7 @@ The dynamics, with the probabilities the dissertation leaves open chosen here:
 - Rain is fixed for an episode; an episode starts in the office, dry, without
   umbrella or coffee, raining with probability 1/2.
 
-Reward features (SPEC §3.1): ``φ = (user has coffee, robot wet)``; a person's reward
+Reward features (§2.3.2): ``φ = (user has coffee, robot wet)``; a person's reward
 is ``w_coffee · φ_0 + w_wet · φ_1`` with ``w_coffee > 0`` and ``w_wet ≤ 0``.
 
 The believed dynamics that matter are few: a person's belief is this world with

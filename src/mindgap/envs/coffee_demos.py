@@ -1,4 +1,4 @@
-"""The demonstrations of the coffee-robot study (§2.3.2, Fig. 11; SPEC §3.1).
+"""The demonstrations of the coffee-robot study (§2.3.2, Fig. 11).
 
 Eight scripted scenarios cover what may happen — a sunny or a rainy day, with or
 without the umbrella, spilling the coffee or not — and one sanity-check

@@ -1,4 +1,4 @@
-"""The grid navigation domain of §2.3.1 (``grid7``) and its belief variants (SPEC §3.1).
+"""The grid navigation domain of §2.3.1 (``grid7``) and its belief variants.
 
 States are cells ``s = row * size + col`` with row 0 at the top. Actions are
 0 Up, 1 Down, 2 Left, 3 Right. The robot makes the intended move with probability

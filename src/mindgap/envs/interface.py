@@ -19,8 +19,8 @@ units inside ``step``. The learners reset an episode when ``step`` reports it te
 truncated, and count the episode's steps themselves.
 
 A :class:`World` is an Env with its true params, its named beliefs and its horizon: what a
-learner's ``train`` takes. :class:`~mindgap.envs.terrain.TerrainWorld` is one; :func:`make_world`
-builds one for a user's own Env.
+learner's ``train`` takes. :class:`~mindgap.envs.terrain.TerrainWorld` is one; a user's own Env
+becomes one as ``World(name, env, params, beliefs, horizon=…)`` (``examples/point_mass.py``).
 """
 
 from __future__ import annotations

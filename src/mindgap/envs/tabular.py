@@ -1,7 +1,7 @@
 """Finite MDPs as JAX pytrees (dissertation §2.2.1), and sampling trajectories in them.
 
 A :class:`TabularMDP` holds the dynamics as data, so a person's *belief* about the
-dynamics is simply another ``TabularMDP`` with other transitions (SPEC §3). All
+dynamics is simply another ``TabularMDP`` with other transitions (§2.2.1). All
 arrays may carry extra leading batch axes; the planning functions in
 :mod:`mindgap.planning` broadcast over them.
 """

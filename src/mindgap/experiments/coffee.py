@@ -82,7 +82,7 @@ class CoffeeConfig:
 
 
 def preset(name: str) -> CoffeeConfig:
-    """``full`` (the real numbers) or ``fast`` (seconds; used by tests and the README)."""
+    """``full`` (the real numbers) or ``fast`` (a minute; used by the tests)."""
     if name == "full":
         return CoffeeConfig()
     if name == "fast":

@@ -13,7 +13,7 @@ Outputs in the run folder:
 * ``results.csv``: per world and method, over seeds: the return of ``rollouts`` stochastic
   episodes per seed (Table 3) and their explicability score (Table 4; its dynamics and
   policy parts), the greedy policy's return, goal rate, terrain shares, mean pit distance
-  and ``required_route`` (the share of seeds on the route SPEC §3.2 asks of EPS:
+  and ``required_route`` (the share of seeds on the route the world file's ``[expect] eps_route`` asks of EPS, §4.4.1:
   :func:`~.eps_common.required_route`);
 * ``person.csv``: per world, the person's expected policy π_H run in the real world (what
   obeying the person earns, and its explicability — the most a policy can have there);

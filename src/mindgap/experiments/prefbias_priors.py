@@ -53,7 +53,7 @@ class PriorsConfig:
 
 
 def preset(name: str) -> PriorsConfig:
-    """``full`` (5 seeds, 800 queries, 30 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
+    """``full`` (5 seeds, 800 queries, 50 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
     if name == "full":
         return PriorsConfig()
     if name == "fast":

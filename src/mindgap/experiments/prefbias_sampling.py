@@ -41,7 +41,7 @@ class SamplingConfig:
 
 
 def preset(name: str) -> SamplingConfig:
-    """``full`` (5 seeds, 800 queries, 30 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
+    """``full`` (5 seeds, 800 queries, 50 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
     if name == "full":
         return SamplingConfig()
     if name == "fast":

@@ -50,7 +50,7 @@ class Table1Config:
     seeds: int = 10
     """Seeds per setting (each: its own corner pair, demonstrations and ratings)."""
     demos: int = 2000
-    """Rated demonstrations per fit (SPEC §4: random demonstrations are weak evidence)."""
+    """Rated demonstrations per fit (random demonstrations are weak evidence: docs/experiments/table1.md)."""
     length: int = 10
     """Steps per demonstration."""
     size: int = 7
@@ -69,7 +69,7 @@ class Table1Config:
 
 
 def preset(name: str) -> Table1Config:
-    """``full`` (the real numbers) or ``fast`` (seconds; used by tests and the README)."""
+    """``full`` (the real numbers) or ``fast`` (seconds; used by the tests and ``scripts/main.sh``)."""
     if name == "full":
         return Table1Config()
     if name == "fast":

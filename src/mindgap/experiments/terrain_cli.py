@@ -3,7 +3,7 @@
 mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR] [--fresh] [--quiet] [--assemble]
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, tiny networks: a dry run and the tests'
-preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 30 000
+preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 50 000
 steps, 80 queries a round; the EPS ones: 5 seeds, 60 000 steps, 800 queries). ``--worlds``
 runs a subset of the experiment's worlds (or world files); ``--env SPEC`` (repeatable) runs
 it on any world with a belief and an exact density, a user's ``path.py:factory`` included

@@ -1,4 +1,4 @@
-"""Demonstrations and their ratings as frozen, shape-checked containers (SPEC §3.1)."""
+"""Demonstrations and their ratings as frozen, shape-checked containers (§2.2.1)."""
 
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def make_demonstrations(states, actions, mask=None, *, n_states: int, n_actions:
 
 
 def random_demonstrations(key, mdp: TabularMDP, count: int, length: int = 10) -> Demonstrations:
-    """Uniform-random-policy rollouts under the true dynamics (Fig. 3, SPEC §3.1)."""
+    """Uniform-random-policy rollouts under the true dynamics (Fig. 3, §2.3.1)."""
     uniform = jnp.full((mdp.n_states, mdp.n_actions), 1.0 / mdp.n_actions)
     return policy_demonstrations(key, mdp, uniform, count, length)
 

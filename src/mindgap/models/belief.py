@@ -1,4 +1,4 @@
-"""Parameterisations of a person's believed dynamics ``Θ`` (§2.2.1, SPEC §2).
+"""Parameterisations of a person's believed dynamics ``Θ`` (§2.2.1, §2.2.2).
 
 A :class:`BeliefSpace` maps ``F`` categorical *factors* with up to ``M`` outcomes each
 onto a full ``[S, A, S]`` transition tensor:

@@ -3,7 +3,7 @@
 The person's mean rating of ``ζ`` is ``γ̃ = γ_max · (Π_i π̃(a_i|s_i))^{1/n}``, the
 geometric mean of their softmax policy on the demonstrated steps. Observed ratings are
 ``N(γ̃, σ²)`` clipped to ``[0, γ_max]``; a rating at a bound is a censored observation
-(SPEC §4), so its likelihood is the Gaussian tail mass beyond the bound.
+(the slider cannot go further), so its likelihood is the Gaussian tail mass beyond the bound.
 """
 
 from __future__ import annotations

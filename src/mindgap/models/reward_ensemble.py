@@ -37,7 +37,7 @@ with a person who answers by Bradley–Terry with a finite β (Eq. 3.4) the scor
 are identified on their own scale, in nats, and a biased person's per-step score
 r_H + log T_H ranges over several nats (a precise step under a belief with σ = 0.05 cells is
 worth about +3); a bound of 1 cannot represent it, and where a learned reward sits at its
-bound is then decided by the bound, not the answers (docs/identifiability.md).
+bound is then decided by the bound, not the answers (docs/experiments/identifiability.md).
 """
 
 from __future__ import annotations

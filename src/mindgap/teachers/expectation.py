@@ -1,4 +1,4 @@
-"""The simulated person who says which of two segments is *more expected* (SPEC §4, §4.3.3).
+"""The simulated person who says which of two segments is *more expected* (§4.3.3).
 
 The person scores a segment by how likely they find it under their own model of the
 agent — the believed dynamics T_H and the expected policy π_H:

@@ -1,4 +1,4 @@
-"""Simulated participants of the coffee-robot study (§2.3.2, Table 2; SPEC §4).
+"""Simulated participants of the coffee-robot study (§2.3.2, Table 2).
 
 A participant has two latent attitudes on the questionnaire's 1–5 scale: ``z₁``, how
 likely they think the robot spills the coffee while holding an umbrella (Q1), and

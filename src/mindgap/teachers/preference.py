@@ -1,4 +1,4 @@
-"""The simulated person who compares two segments (SPEC §4, Eq. 3.5, B-Pref's knobs).
+"""The simulated person who compares two segments (§3.3.3.2, Eqs. 3.4–3.5, B-Pref's knobs).
 
 The person scores a segment by ``Σ_t γ^{L−1−t} [r_H(s_t, a_t, s_{t+1}) + log T_H(s_{t+1} | s_t, a_t)]``
 — what they want plus how plausible each step looks under their belief — and prefers
@@ -35,7 +35,7 @@ class TeacherConfig:
     """Rationality of Bradley–Terry (Eq. 3.4: P(σ₁ ≻ σ₂) = sigmoid(β (S₁ − S₂))). None answers
     deterministically (B-Pref's oracle), under which the scale of the score is not identified:
     a learner can match hard labels with any score scaled up, so the belief's level is lost
-    (docs/identifiability.md)."""
+    (docs/experiments/identifiability.md)."""
     gamma: float = 1.0
     """Myopic discount: step t of L counts γ^(L−1−t)."""
     mistake: float = 0.0

@@ -1,4 +1,4 @@
-"""The simulated person who rates demonstrations (SPEC §4, RatingTeacher)."""
+"""The simulated person who rates demonstrations (§2.2.1, §2.3.1)."""
 
 from __future__ import annotations
 

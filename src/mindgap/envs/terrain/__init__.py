@@ -1,4 +1,4 @@
-"""Continuous 2-D terrain worlds (§3.2): ice, sand, pits, walls; pure JAX, exact densities."""
+"""Continuous 2-D terrain worlds (§3.4.2.1, §4.4.1): ice, sand, pits, walls; pure JAX, exact densities."""
 
 from ..interface import Step as Step
 from .dynamics import log_prob_pos as log_prob_pos
@@ -22,3 +22,28 @@ from .world import position as position
 from .world import reset as reset
 from .world import reward as reward
 from .world import step as step
+
+__all__ = [
+    "Dynamics",
+    "Layout",
+    "LayoutError",
+    "load_world",
+    "log_prob",
+    "log_prob_pos",
+    "NAMED_WORLDS",
+    "observe",
+    "parse_layout",
+    "position",
+    "reset",
+    "reward",
+    "Rewards",
+    "sample_next",
+    "step",
+    "Step",
+    "TERRAIN_ENV",
+    "TerrainParams",
+    "TERRAINS",
+    "TerrainState",
+    "TerrainWorld",
+    "world_from_dict",
+]

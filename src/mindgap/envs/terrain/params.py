@@ -116,7 +116,7 @@ class Rewards(NamedTuple):
     * state form (``state_form`` = 1): r(s) = step − distance·Φ(s) + goal·[s in the goal] +
       pit·[s in a pit] (Φ taken as 0 in the goal and in pits), a function of where the step starts only. A learner's r_w(s, a) can
       represent it, so a person's preferences separate it from their belief
-      (docs/identifiability.md). ``distance`` makes it dense: every step closer to the goal is
+      (docs/experiments/identifiability.md). ``distance`` makes it dense: every step closer to the goal is
       better, so segments that never reach the goal still differ in reward.
     """
 
