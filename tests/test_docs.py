@@ -82,3 +82,15 @@ def test_the_terrain_snippet_runs():
     surprise, check = namespace["surprise"], namespace["check"]
     assert surprise["robot"] > surprise["person"] + 2
     assert check.true.ice > check.true.sand and check.expected.sand > check.expected.ice
+
+
+def test_the_readme_claims_table_is_what_the_committed_runs_decide():
+    """The README's ✓/✗ table and its tally are generated from results/ (``mindgap report results --readme``)."""
+    from mindgap.experiments.report import find_runs, with_claims
+
+    text = (ROOT / "README.md").read_text()
+    table = text.split("<!-- claims:start -->")[1].split("<!-- claims:end -->")[0]
+    assert table.count("\n| ") > 2  # a header and at least one claim
+    assert with_claims(text, find_runs([ROOT / "results"]), ROOT) == text, (
+        "README.md's claims differ from what results/ decides: run `mindgap report results --readme README.md`"
+    )

@@ -151,7 +151,8 @@ def test_readme_claims_block_is_rewritten_between_its_markers_and_refused_withou
     assert main(["report", str(runs), "--out", str(tmp_path / "r"), "--readme", str(readme)]) == 0
     text = readme.read_text()
     assert "old" not in text and text.startswith("# x\n\nbefore\n") and text.endswith("<!-- claims:end -->\nafter\n")
-    assert "| [nav](runs/nav-full/) (§3.4.2.1, §3.4.3) | nav: first claim | 1.0 | ✓ |" in text
+    assert "([run](runs/nav-full/)) (§3.4.2.1, §3.4.3) | nav: first claim | 1.0 | ✓ |" in text
+    assert "docs/experiments/prefbias.md)" in text
     assert "eps:" not in text  # a fast run's claims mean nothing
     plain = tmp_path / "PLAIN.md"
     plain.write_text("no markers\n")

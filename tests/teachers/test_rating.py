@@ -20,7 +20,7 @@ def test_ratings_are_geometric_mean_of_policy_and_clipped():
 
 
 def test_random_demonstrations_are_weak_evidence():
-    # SPEC §4: noise-free ratings of random demonstrations average about 0.6–1.0
+    # noise-free ratings of random demonstrations average about 0.6–1.0
     task = make_grid(7, "reversed", seed=0)
     teacher = RatingTeacher(task.mdp, task.true_weights, task.human_transitions)
     mean = np.asarray(teacher.mean_ratings(random_demonstrations(rng.key(2), task.mdp, 5000, 10)))

@@ -25,7 +25,7 @@ from .learn import beta_value
 def add_parser(sub) -> None:
     d = sub.add_parser("design", help="check that a world can show PrefBias's effect before running a study")
     dsub = d.add_subparsers(dest="design_command", required=True)
-    c = dsub.add_parser("check", help="plan, compare and measure identifiability (docs/identifiability.md)")
+    c = dsub.add_parser("check", help="plan, compare and measure identifiability (docs/experiments/identifiability.md)")
     c.add_argument("worlds", nargs="+", help="named terrain worlds or world files")
     c.add_argument("--belief", help="the person's belief (default: each world's first)")
     c.add_argument("--budget", type=int, default=800, help="answered queries (default 800)")

@@ -1,4 +1,4 @@
-"""``mindgap study serve|check|links|export|examples``: run a user study in a browser (SPEC §5).
+"""``mindgap study serve|check|links|export|examples``: run a user study in a browser (docs/study.md).
 
 mindgap study examples                                   # list the example study files
 mindgap study examples coffee-rating --out study.yaml    # copy one

@@ -238,7 +238,7 @@ def claims_markdown(runs: list[Run], relative_to: str | Path | None = None) -> s
     """The claims of the full-preset runs as one Markdown table (✓ held, ✗ not, – undecided).
 
     With ``relative_to`` (the folder of the file the table goes into), each experiment links
-    to its run folder.
+    to its documentation page and its run's tables (``table.md``, else the run folder).
     """
     lines = ["| experiment | claim | measured | |", "|---|---|---|---|"]
     for run in runs:
@@ -247,28 +247,60 @@ def claims_markdown(runs: list[Run], relative_to: str | Path | None = None) -> s
         entry = CATALOG[run.experiment]
         where = run.experiment
         if relative_to is not None:
-            href = Path(os.path.relpath(run.path.resolve(), Path(relative_to).resolve())).as_posix()
-            where = f"[{run.experiment}]({href}/)"
+            base = Path(relative_to).resolve()
+            docs = Path(__file__).resolve().parents[3] / entry.docs
+            tables = run.path / "table.md"
+            target = _rel(tables, base) if tables.exists() else _rel(run.path, base) + "/"
+            where = f"[{run.experiment}]({target})"
+            if docs.exists():  # a source checkout: the docs are beside the package
+                where = f"[{run.experiment}]({_rel(docs, base)}) ([run]({target}))"
         for c in run.claims:
             mark = {True: "✓", False: "✗", None: "–"}[c["held"]]
             lines.append(f"| {where} ({entry.section}) | {c['text']} | {c['measured']} | {mark} |")
     return "\n".join(lines) + "\n"
 
 
+def _rel(path: Path, base: Path) -> str:
+    return Path(os.path.relpath(Path(path).resolve(), base)).as_posix()
+
+
 CLAIMS_START, CLAIMS_END = "<!-- claims:start -->", "<!-- claims:end -->"
+TALLY_START, TALLY_END = "<!-- tally:start -->", "<!-- tally:end -->"
 
 
 def update_claims_block(path: str | Path, runs: list[Run]) -> None:
-    """Replace the lines between ``path``'s claims markers with :func:`claims_markdown` of ``runs``.
+    """Replace the lines between ``path``'s claims markers with :func:`claims_markdown` of ``runs``,
+    and the text between its tally markers (if it has them) with :func:`tally_sentence`.
 
     Raises:
-        ValueError: the file lacks the markers (nothing is written).
+        ValueError: the file lacks the claims markers (nothing is written).
     """
     path = Path(path)
     text = path.read_text()
     if CLAIMS_START not in text or CLAIMS_END not in text:
         raise ValueError(f"{path}: no {CLAIMS_START} … {CLAIMS_END} lines to put the claims between")
-    head, rest = text.split(CLAIMS_START, 1)
-    _, tail = rest.split(CLAIMS_END, 1)
-    block = claims_markdown(runs, relative_to=path.parent)
-    atomic_write(path, f"{head}{CLAIMS_START}\n{block}{CLAIMS_END}{tail}")
+    atomic_write(path, with_claims(text, runs, path.parent))
+
+
+def with_claims(text: str, runs: list[Run], relative_to: str | Path) -> str:
+    """``text`` with its claims table and tally sentence made from ``runs`` (links relative to ``relative_to``)."""
+    text = _between(text, CLAIMS_START, CLAIMS_END, "\n" + claims_markdown(runs, relative_to=relative_to))
+    if TALLY_START in text and TALLY_END in text:
+        text = _between(text, TALLY_START, TALLY_END, tally_sentence(runs))
+    return text
+
+
+def _between(text: str, start: str, end: str, block: str) -> str:
+    head, rest = text.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{start}{block}{end}{tail}"
+
+
+def tally_sentence(runs: list[Run]) -> str:
+    """``N of M claims hold in the full runs of …; not run in full yet: …`` (fast runs left out)."""
+    t = tally(runs)
+    total = t["held"] + t["failed"] + t["undecided"]
+    checked = [n for n in registry.NAMES if any(r.experiment == n and r.claims and not r.fast for r in runs)]
+    rest = [n for n in registry.NAMES if n not in checked]
+    text = f"{t['held']} of {total} claims hold in the full runs of {', '.join(checked) or 'no experiment'}"
+    return text + (f"; not run in full yet: {', '.join(rest)}" if rest else "")

@@ -32,6 +32,8 @@ class Entry(NamedTuple):
     title: str
     section: str
     items: tuple[Item, ...]
+    docs: str
+    """The documentation page on the experiment, from the repository root."""
 
 
 _TABLE1 = """| | d(R) | d(Θ) | d(π) | d(R) | d(Θ) | d(π) |
@@ -76,6 +78,7 @@ CATALOG: dict[str, Entry] = {
                 ("Data efficiency",),
             ),
         ),
+        "docs/experiments/table1.md",
     ),
     "coffee": Entry(
         "The coffee-robot user study",
@@ -98,6 +101,7 @@ CATALOG: dict[str, Entry] = {
                 ("Learned per robot",),
             ),
         ),
+        "docs/experiments/coffee.md",
     ),
     "nav": Entry(
         "PrefBias on the navigation tasks",
@@ -118,6 +122,7 @@ CATALOG: dict[str, Entry] = {
                 ("results.csv",),
             ),
         ),
+        "docs/experiments/prefbias.md",
     ),
     "priors": Entry(
         "PrefBias: the belief prior",
@@ -131,6 +136,7 @@ CATALOG: dict[str, Entry] = {
                 ("results.csv", "curves.csv"),
             ),
         ),
+        "docs/experiments/prefbias.md",
     ),
     "sampling": Entry(
         "PrefBias: query sampling",
@@ -144,6 +150,7 @@ CATALOG: dict[str, Entry] = {
                 ("results.csv", "curves.csv"),
             ),
         ),
+        "docs/experiments/prefbias.md",
     ),
     "eps": Entry(
         "Explicable policy search on D1–D4",
@@ -179,6 +186,7 @@ CATALOG: dict[str, Entry] = {
                 ("curves.csv",),
             ),
         ),
+        "docs/experiments/eps.md",
     ),
     "lambda": Entry(
         "EPS: the reconciliation weight λ",
@@ -191,6 +199,7 @@ CATALOG: dict[str, Entry] = {
                 ("results.csv", "curves.csv"),
             ),
         ),
+        "docs/experiments/eps.md",
     ),
 }
 

@@ -11,7 +11,7 @@ compares the policies of three rewards, each run in the true world and scored by
 Scores are normalised between a uniformly random policy (0) and the optimal one (1). It also
 reports the per-step bias E_T[log T_H − log T] = −KL(T ‖ T_H) on each terrain, whether the
 belief is identifiable from preferences at the budget (:mod:`~.identifiability`), and the
-conditions of docs/identifiability.md that the world and person meet.
+conditions of docs/experiments/identifiability.md that the world and person meet.
 
 The verdict: a world is a valid test of PrefBias when the unaware learner loses a clear
 share of the optimal return (normalised ≤ :data:`UNAWARE_AT_MOST`) and every biased belief
@@ -143,7 +143,7 @@ def expected_log_t(key, world_params, scored_params, positions, actions, draws: 
 
 
 def conditions(world, cfg: DesignConfig, parameters: list[Parameter]) -> list[Condition]:
-    """The conditions of docs/identifiability.md, as this world and person meet them."""
+    """The conditions of docs/experiments/identifiability.md, as this world and person meet them."""
     rw = world.params.rewards
     state_form = float(rw.state_form) > 0.5
     s_prime_free = state_form or (float(rw.progress) == 0 and float(rw.goal) == 0 and float(rw.pit) == 0)
@@ -273,7 +273,7 @@ def report(chk: DesignCheck) -> str:
     for p in chk.parameters:
         z = "unbiased" if not p.biased else (f"{p.z:.1f} SE" + ("" if p.identified else "  NOT IDENTIFIED"))
         lines.append(f"  {p.name:<12} {p.truth:6.3f} → {p.belief:6.3f}   ± {p.stderr:.3g}   {z}")
-    lines += ["", "conditions (docs/identifiability.md):"]
+    lines += ["", "conditions (docs/experiments/identifiability.md):"]
     lines += [f"  [{'ok' if c.met else '--'}] {c.text}: {c.why}" for c in chk.conditions]
     lines.append("")
     if chk.normalised["unbiased"] < UNBIASED_AT_LEAST:

@@ -1,7 +1,7 @@
 """Grid tasks: the ``grid7`` world of :mod:`mindgap.envs.grid` with reward corners picked by planning.
 
 The corner pair is chosen among those for which the person's belief misleads an
-unaware learner (SPEC §3.1); finding them needs value iteration, so task building
+unaware learner (dissertation §2.3.1); finding them needs value iteration, so task building
 sits here, above the world pieces in :mod:`mindgap.envs.grid`.
 """
 
@@ -45,7 +45,7 @@ def informative_pairs(size: int, true_t: np.ndarray, human_t: np.ndarray, weight
     that assumes the true dynamics then infers the wrong reward. Returns the most
     misleading pairs (within half of the strongest effect); empty when none misleads.
     Under ``reversed`` these are the pairs in one column, under ``rotated`` the
-    anti-diagonal (SPEC §3.1).
+    anti-diagonal (dissertation §2.3.1).
     """
     corners = corner_cells(size)
     pairs = list(itertools.permutations(range(4), 2))
