@@ -10,6 +10,8 @@ from study_helpers import ADMIN, Participant, hidden, study_file
 from mindgap.study.app import create_app
 from mindgap.study.server import open_study
 
+GRID = {"source": "random", "count": 3, "length": 10}
+
 
 def _app(tmp_path, example="coffee-rating", **changes):
     changes.setdefault("participants", 3)
@@ -205,3 +207,26 @@ def test_comparison_items_show_two_pictures_and_take_a_choice(tmp_path):
     assert r.status_code == 303
     assert [(a["choice"], a["value"]) for a in store.answers()] == [("equal", 0.5)]
     assert dataclasses.asdict(study)["protocol"] == "preference"
+
+
+def test_a_new_store_under_an_old_name_serves_its_own_pictures(tmp_path):
+    def first_picture(seed, db):
+        config = study_file(tmp_path, "grid7-rating", participants=1, min_seconds=0, items={**GRID, "seed": seed})
+        study, store, renderer = open_study(config, db, ADMIN)
+        client = TestClient(create_app(study, store, renderer))
+        token = store.participants()[0]["token"]
+        item = store.items()[0]["id"]
+        img = client.get(f"/p/{token}/media/{item}/demo")
+        assert img.status_code == 200
+        store.close()
+        return item, img.content
+
+    db = tmp_path / "same-name.sqlite"
+    item0, old = first_picture(0, db)
+    for f in tmp_path.glob("same-name.sqlite*"):  # the researcher deletes the store, not its pictures
+        if f.is_file():
+            f.unlink()
+    item1, new = first_picture(1, db)
+    _, fresh = first_picture(1, tmp_path / "elsewhere.sqlite")
+    assert item0 == item1  # the same item id with another path
+    assert new == fresh and new != old

@@ -9,11 +9,16 @@
   question can be judged), or an animated GIF (``animation: true`` in ``items``).
 
 Matplotlib is not thread-safe, so drawing holds one lock; each picture is drawn once
-and written through a rename, then served from the cache folder.
+and written through a rename, then served from the cache folder. A cached file is named
+by a hash of everything that decides the picture (the domain, the item's data, the part,
+the condition and the format), so a store started again under an old name with other
+items never shows the old pictures.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import threading
 from pathlib import Path
 
@@ -23,13 +28,18 @@ _LOCK = threading.Lock()
 PART_COLOURS = {"a": "#d62728", "b": "#1f77b4"}
 
 
+# Bumped when a drawing changes, so that pictures cached by an older mindgap are drawn again.
+DRAWING_VERSION = 2
+
+
 class Renderer:
-    """Draws items of one study into ``cache`` (``<cache>/<condition>/<item>-<part>.<ext>``)."""
+    """Draws items of one study into ``cache`` (``<cache>/<condition>/<item>-<part>-<key>.<ext>``)."""
 
     def __init__(self, study, cache: Path):
         self.study = study
         self.cache = Path(cache)
         self._world = None
+        self._world_digest: str | None = None
 
     @property
     def world(self):
@@ -39,12 +49,30 @@ class Renderer:
             self._world = load_study_world(self.study)
         return self._world
 
+    def _world_file(self) -> str:
+        """A hash of a terrain world given as a file (its content, not only its name, decides the map)."""
+        if self._world_digest is None:
+            self._world_digest = ""
+            name = self.study.domain.get("world")
+            if isinstance(name, str):
+                path = Path(name) if Path(name).is_absolute() else Path(self.study.base_dir) / name
+                if path.is_file():
+                    self._world_digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        return self._world_digest
+
     def ext(self) -> str:
         return "gif" if self.study.items.get("animation") else "png"
 
+    def key(self, item: dict, part: str, condition: str, ext: str) -> str:
+        """A hash of what decides the picture: the domain, the item's data, the part, the condition, the format."""
+        what = [DRAWING_VERSION, self.study.domain, self._world_file(), item["data"], part, condition, ext]
+        return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:16]
+
     def path(self, item: dict, part: str, condition: str) -> Path:
         """The picture of ``part`` (``demo``, ``a`` or ``b``) of ``item``, drawn on first use."""
-        out = self.cache / (condition or "all") / f"{item['id']}-{part}.{self.ext() if part != 'demo' else 'png'}"
+        ext = self.ext() if part != "demo" else "png"
+        key = self.key(item, part, condition, ext)
+        out = self.cache / (condition or "all") / f"{item['id']}-{part}-{key}.{ext}"
         if out.exists():
             return out
         with _LOCK:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 from .config import Study, load_study
@@ -21,7 +22,8 @@ def open_study(config, db=None, admin_token: str | None = None) -> tuple[Study, 
     """Read the study file, open (or create) its store, and bind them.
 
     On first use the items are built and stored and the study's participant links are
-    created; later the store must belong to the same study file.
+    created, and pictures left in ``<db>.media`` by an earlier store of that name are
+    removed; later the store must belong to the same study file.
     """
     study = load_study(config)
     db = Path(db) if db else default_db(study)
@@ -31,8 +33,10 @@ def open_study(config, db=None, admin_token: str | None = None) -> tuple[Study, 
         items = [it.as_dict() for it in build_items(study)]
     else:
         items = []
-    store.bind_study(study, items, admin_token or os.environ.get(ADMIN_ENV) or None)
-    return study, store, Renderer(study, db.with_name(db.name + ".media"))
+    media = db.with_name(db.name + ".media")
+    if store.bind_study(study, items, admin_token or os.environ.get(ADMIN_ENV) or None) and media.is_dir():
+        shutil.rmtree(media)
+    return study, store, Renderer(study, media)
 
 
 def serve(config, db=None, host: str = "127.0.0.1", port: int = 8000, admin_token: str | None = None, quiet=False):
