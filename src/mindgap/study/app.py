@@ -268,20 +268,16 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             if choice not in CHOICES:
                 return show(request, p, 422, "Please choose A, B or can't tell.")
             value = {"a": 1.0, "b": 0.0, "equal": 0.5}[choice]
-        answered = store.answered_ids(p["id"])
-        if item_id not in answered and not item_id.startswith(LIVE_PREFIX):
-            current = current_item(p)
-            if item_id != current:
-                raise HTTPError(409, "Out of order", "Please answer the items in the order they are shown.")
-        if item_id not in answered:
-            shown = store.shown_at(p["id"], item_id)
-            if shown is None:
-                raise HTTPError(409, "Not shown", "This item has not been shown to you yet.")
-            if time.time() - shown < study.min_seconds:
-                return show(
-                    request, p, 422, f"Please take at least {study.min_seconds:g} seconds to look at each item."
-                )
-        outcome = store.record_answer(p["id"], item_id, value, choice, submission)
+        order = None if item_id.startswith(LIVE_PREFIX) else json.loads(p["item_order"])
+        outcome = store.record_answer(
+            p["id"], item_id, value, choice, submission, order=order, min_seconds=study.min_seconds
+        )
+        if outcome == "out-of-order":
+            raise HTTPError(409, "Out of order", "Please answer the items in the order they are shown.")
+        if outcome == "not-shown":
+            raise HTTPError(409, "Not shown", "This item has not been shown to you yet.")
+        if outcome == "too-fast":
+            return show(request, p, 422, f"Please take at least {study.min_seconds:g} seconds to look at each item.")
         if outcome == "conflict":
             raise HTTPError(409, "Bad form", "This form was already used for another answer. Please reload the page.")
         if outcome == "closed":
