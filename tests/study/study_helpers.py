@@ -35,9 +35,11 @@ def free_port() -> int:
 class Server:
     """``mindgap study serve`` in a subprocess (a real uvicorn server)."""
 
-    def __init__(self, config: Path, db: Path, port: int | None = None, extra: tuple[str, ...] = ()):
+    def __init__(
+        self, config: Path, db: Path, port: int | None = None, extra: tuple[str, ...] = (), quiet: bool = True
+    ):
         self.config, self.db, self.port = config, db, port or free_port()
-        self.extra = extra
+        self.extra, self.quiet = extra, quiet
         self.proc: subprocess.Popen | None = None
         self.log = db.with_suffix(".log")
 
@@ -57,7 +59,7 @@ class Server:
             "--db",
             str(self.db),
         ]
-        cmd += ["--port", str(self.port), "--admin-token", ADMIN, "--quiet", *self.extra]
+        cmd += ["--port", str(self.port), "--admin-token", ADMIN, *(["--quiet"] if self.quiet else []), *self.extra]
         with self.log.open("ab") as log:
             self.proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + timeout

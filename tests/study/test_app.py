@@ -230,3 +230,19 @@ def test_a_new_store_under_an_old_name_serves_its_own_pictures(tmp_path):
     _, fresh = first_picture(1, tmp_path / "elsewhere.sqlite")
     assert item0 == item1  # the same item id with another path
     assert new == fresh and new != old
+
+
+def test_a_form_without_a_length_is_read_only_up_to_the_limit(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    csrf = hidden(client.get(f"/p/{token}").text, "csrf")
+    chunks = iter([f"csrf={csrf}&agree=yes&pad=".encode(), b"a" * 40_000, b"a" * 40_000])  # sent chunked
+    r = client.post(
+        f"/p/{token}/consent", content=chunks, headers={"Content-Type": "application/x-www-form-urlencoded"}
+    )
+    assert r.status_code == 413 and "at most 64 KiB" in r.text
+    r = client.post(f"/p/{token}/consent", files={"agree": ("agree.txt", b"yes")}, data={"csrf": csrf})
+    assert r.status_code == 415  # the pages send URL-encoded forms only
+    assert store.participant(token)["consent_at"] is None
+    r = client.post(f"/p/{token}/consent", data={"csrf": csrf, "agree": "yes"}, follow_redirects=False)
+    assert r.status_code == 303 and store.participant(token)["consent_at"] is not None

@@ -2,6 +2,7 @@
 
 import random
 import re
+import socket
 import threading
 import time
 from collections import Counter
@@ -177,6 +178,39 @@ def test_a_killed_server_loses_no_acknowledged_answer_and_participants_continue(
         server.stop()
         for p in people:
             p.http.close()
+
+
+@pytest.fixture(scope="module")
+def running(tmp_path_factory):
+    """One server with its request log on, shared by the checks below that change nothing they share."""
+    tmp = tmp_path_factory.mktemp("running")
+    server = Server(study_file(tmp, "coffee-rating", participants=3, min_seconds=0), tmp / "run.sqlite", quiet=False)
+    server.start()
+    yield server
+    server.stop()
+
+
+def _raw_post(server, path: str, length: int, sent: bytes) -> str:
+    """POST announcing a ``length``-byte body but sending only ``sent``; the status line that comes back."""
+    head = (
+        f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\n"
+        f"Content-Type: application/x-www-form-urlencoded\r\nContent-Length: {length}\r\n\r\n"
+    )
+    with socket.create_connection(("127.0.0.1", server.port), timeout=20) as s:
+        s.sendall(head.encode() + sent)
+        reply = s.recv(4096)  # a server that waits for the whole body times out here
+    return reply.split(b"\r\n", 1)[0].decode()
+
+
+def test_a_large_body_is_refused_before_it_is_read(running):
+    token = Store(running.db).participants()[0]["token"]
+    huge = 200_000_000  # announced, never sent: the answer must come without reading it
+    assert _raw_post(running, "/p/doesnotexist/consent", huge, b"csrf=x&agree=") == "HTTP/1.1 404 Not Found"
+    assert _raw_post(running, f"/p/{token}/consent", huge, b"csrf=x&agree=") == "HTTP/1.1 413 Request Entity Too Large"
+    assert _raw_post(running, f"/p/{token}/consent", 70_000, b"a" * 70_000).startswith("HTTP/1.1 413")
+    r = httpx.post(f"{running.base}/admin/participants", content=b"count=1&" * 10_000)
+    assert r.status_code == 401  # the admin token is checked first too
+    assert Store(running.db).participant(token)["consent_at"] is None
 
 
 def test_the_server_listens_on_localhost_only(tmp_path):

@@ -31,7 +31,7 @@ import secrets
 import statistics
 import time
 from importlib import resources
-from urllib.parse import urlsplit
+from urllib.parse import parse_qsl, urlsplit
 
 from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
@@ -45,6 +45,7 @@ from .render import Renderer
 from .store import LIVE_PREFIX, Store
 
 _SUBMISSION = re.compile(r"^[A-Za-z0-9_-]{8,64}$")
+MAX_FORM = 64 * 1024  # bytes: the largest form a page sends is well under 1 KiB
 COOKIE = "mindgap_admin"
 CHOICES = {"a": "A", "b": "B", "equal": "can't tell"}
 CSP = (
@@ -56,6 +57,30 @@ CSP = (
 class HTTPError(Exception):
     def __init__(self, status: int, title: str, text: str):
         self.status, self.title, self.text = status, title, text
+
+
+async def read_form(request: Request) -> dict[str, str]:
+    """The URL-encoded form of a POST, refused (413) when it is over :data:`MAX_FORM` bytes.
+
+    A larger ``Content-Length`` is refused before any of the body is read, and a body
+    without one (chunked) is read only up to the limit.
+    """
+    too_large = HTTPError(413, "Form too large", f"A study form is at most {MAX_FORM // 1024} KiB.")
+    length = request.headers.get("content-length")
+    if length is not None and (not length.isdigit() or int(length) > MAX_FORM):
+        raise too_large
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/x-www-form-urlencoded":
+        raise HTTPError(415, "Not a form", "Answers are sent by the study page's forms.")
+    body = bytearray()
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > MAX_FORM:
+            raise too_large
+    try:
+        return dict(parse_qsl(body.decode("utf-8"), keep_blank_values=True, max_num_fields=100))
+    except (UnicodeDecodeError, ValueError):
+        raise HTTPError(400, "Bad form", "This form could not be read. Please reload the page.") from None
 
 
 def paragraphs(text: str) -> list[str]:
@@ -187,8 +212,9 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
         return show(request, who(token))
 
     async def form_of(request: Request, token: str):
-        form = await request.form()
+        """The participant (404 for an unknown link, before the body is read) and their checked form."""
         p = await run_in_threadpool(who, token)
+        form = await read_form(request)
         check_csrf(form, token)
         return form, p
 
@@ -413,7 +439,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
     @app.post("/admin/participants")
     async def add_participants(request: Request):
         require_admin(request)
-        form = await request.form()
+        form = await read_form(request)
         if not hmac.compare_digest(str(form.get("csrf", "")), csrf("admin")):
             raise HTTPError(403, "Form expired", "This form was not sent from the dashboard. Please reload it.")
         try:
