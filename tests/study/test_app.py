@@ -1,7 +1,9 @@
 """The participant flow, the dashboard and bad input, in process (starlette's TestClient)."""
 
 import dataclasses
+import html
 import json
+import re
 
 import pytest
 from fastapi.testclient import TestClient
@@ -91,9 +93,9 @@ def test_bad_answers_get_clear_errors_and_are_not_stored(coffee):
     token = store.participants()[0]["token"]
     page = _to_items(client, token)
     base = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "sub-000000001"}
-    for bad in ("11", "-1", "nan", "seven", ""):
+    for bad in ("11", "-1", "nan", "seven"):
         r = client.post(f"/p/{token}/answer", data={**base, "rating": bad})
-        assert r.status_code == 422 and "from 0 to 10" in r.text, bad
+        assert r.status_code == 200 and "from 0 to 10" in _error(r.text), bad  # back on the item page
     r = client.post(f"/p/{token}/answer", data={**base, "item_id": "no-such-item", "rating": "5"})
     assert r.status_code == 404 and "no-such-item" in r.text
     order = json.loads(store.participants()[0]["item_order"])
@@ -135,7 +137,7 @@ def test_answers_faster_than_the_minimum_time_are_refused(tmp_path):
         "rating": "4",
     }
     r = client.post(f"/p/{token}/answer", data=form)
-    assert r.status_code == 422 and "at least 30 seconds" in r.text
+    assert r.status_code == 200 and "at least 30 seconds" in _error(r.text)  # back on the item page
     assert store.answers() == []
 
 
@@ -202,7 +204,10 @@ def test_comparison_items_show_two_pictures_and_take_a_choice(tmp_path):
         img = client.get(f"/p/{token}/media/{item}/{part}")
         assert img.status_code == 200 and img.content[:4] == b"\x89PNG"
     form = {"csrf": hidden(page, "csrf"), "item_id": item, "submission_id": "choice-0001"}
-    assert client.post(f"/p/{token}/answer", data={**form, "choice": "c"}).status_code == 422
+    r = client.post(f"/p/{token}/answer", data={**form, "choice": "c"}, follow_redirects=False)
+    assert _error(client.get(_refused(r, token)).text) == "Please choose A, B or can't tell."
+    kept = client.get(f"/p/{token}?item={item}&refused=choice&choice=b").text  # a refused choice comes back
+    assert re.search(r'value="b" id="choice-b"[^>]* checked', kept) and _error(kept).startswith("Please choose")
     r = client.post(f"/p/{token}/answer", data={**form, "choice": "equal"}, follow_redirects=False)
     assert r.status_code == 303
     assert [(a["choice"], a["value"]) for a in store.answers()] == [("equal", 0.5)]
@@ -246,3 +251,86 @@ def test_a_form_without_a_length_is_read_only_up_to_the_limit(coffee):
     assert store.participant(token)["consent_at"] is None
     r = client.post(f"/p/{token}/consent", data={"csrf": csrf, "agree": "yes"}, follow_redirects=False)
     assert r.status_code == 303 and store.participant(token)["consent_at"] is not None
+
+
+def _range_tag(page: str) -> str:
+    m = re.search(r'<input type="range"[^>]*>', page)
+    assert m, page[:2000]
+    return m.group(0)
+
+
+def _error(page: str) -> str:
+    """The error message a page shows ('' when none)."""
+    m = re.search(r'<p class="error" role="alert">([^<]*)</p>', page)
+    return html.unescape(m.group(1)) if m else ""
+
+
+def _refused(r, token):
+    """A refused answer: 303 back to the participant's page, marked ``X-Answer: refused``."""
+    assert r.status_code == 303 and r.headers["x-answer"] == "refused", (r.status_code, r.text[:300])
+    assert r.headers["location"].startswith(f"/p/{token}?")
+    return r.headers["location"]
+
+
+def test_the_slider_has_no_value_until_it_is_moved_and_an_answer_without_one_is_refused(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    slider = _range_tag(page)
+    assert "value=" not in slider and "name=" not in slider  # nothing is sent until the participant moves it
+    assert re.search(r'id="rating-value">\s*–\s*<', page)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "untouched-1"}
+    for missing in ({}, {"rating": ""}):
+        where = _refused(client.post(f"/p/{token}/answer", data={**form, **missing}, follow_redirects=False), token)
+        again = client.get(where)
+        assert (
+            again.status_code == 200
+            and _error(again.text) == "Please move the slider to give your rating (from 0 to 10)."
+        )
+        assert hidden(again.text, "item_id") == form["item_id"]
+    assert store.answers() == []
+
+
+def test_ratings_must_be_plain_numbers_on_the_scales_steps(tmp_path):
+    study, store, client = _app(tmp_path, "grid7-rating", min_seconds=0, rating={"min": 1, "max": 7, "step": 0.5})
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "strict-0001"}
+    for bad in ("6.25", "1e1", "0.5", "7.5", "nan", "inf", "seven", " 6", "6.", ".5", "0x6", "+6", "6,5", "１"):
+        where = _refused(client.post(f"/p/{token}/answer", data={**form, "rating": bad}, follow_redirects=False), token)
+        assert _error(client.get(where).text) == "The rating must be a number from 1 to 7 in steps of 0.5.", bad
+    assert store.answers() == []
+    r = client.post(f"/p/{token}/answer", data={**form, "rating": "6.50"}, follow_redirects=False)
+    assert r.status_code == 303 and r.headers["x-answer"] == "stored"
+    assert [a["value"] for a in store.answers()] == [6.5]
+
+
+def test_a_step_1_scale_refuses_halves(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "half-00001"}
+    for bad in ("5.5", "1e1", "10e0"):
+        r = client.post(f"/p/{token}/answer", data={**form, "rating": bad}, follow_redirects=False)
+        assert _error(client.get(_refused(r, token)).text) == "The rating must be a number from 0 to 10 in steps of 1."
+    assert store.answers() == []
+
+
+def test_a_refused_answer_comes_back_as_its_item_page_with_the_message_and_the_chosen_value(tmp_path):
+    study, store, client = _app(tmp_path, min_seconds=30)
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    item = hidden(page, "item_id")
+    form = {"csrf": hidden(page, "csrf"), "item_id": item, "submission_id": "too-fast-0001", "rating": "7"}
+    where = _refused(client.post(f"/p/{token}/answer", data=form, follow_redirects=False), token)
+    again = client.get(where)  # post/redirect/get: a reload or Back shows this page again, no resubmission
+    assert again.status_code == 200 and _error(again.text) == "Please take at least 30 seconds to look at each item."
+    assert hidden(again.text, "item_id") == item
+    slider = _range_tag(again.text)
+    assert 'value="7"' in slider and 'name="rating"' in slider  # the chosen value is kept
+    assert re.search(r'id="rating-value">\s*7\s*<', again.text)
+    # the address is checked, not echoed: another item's refusal or a made-up value shows nothing
+    for query in ("item=sunny-nothing&refused=too-fast&rating=7", f"item={item}&refused=made-up&rating=<b>"):
+        shown = client.get(f"/p/{token}?{query}").text
+        assert _error(shown) == "" and "<b>" not in shown and "value=" not in _range_tag(shown)
+    assert store.answers() == []

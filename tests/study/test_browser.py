@@ -87,7 +87,11 @@ def test_a_participant_completes_the_coffee_study_in_chromium_and_gerel_fits_it(
             if k == 2:
                 page.reload()  # progress is kept: the same item comes back
                 assert page.input_value("input[name=item_id]") == item
-            page.fill("#rating", str(RATINGS[item]))
+            if k == 0:  # the slider starts without a value; Next waits for it past the minimum time
+                assert page.text_content("#rating-value").strip() == "–"
+                page.wait_for_timeout(800)
+                assert page.is_disabled("#submit")
+            page.fill("#rating", str(RATINGS[item]))  # moves the slider (input and change events)
             assert page.text_content("#rating-value") == str(RATINGS[item])  # the slider's value is shown
             if k == 0:
                 _shot(page, "3-rating-item")
