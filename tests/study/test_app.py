@@ -334,3 +334,17 @@ def test_a_refused_answer_comes_back_as_its_item_page_with_the_message_and_the_c
         shown = client.get(f"/p/{token}?{query}").text
         assert _error(shown) == "" and "<b>" not in shown and "value=" not in _range_tag(shown)
     assert store.answers() == []
+
+
+def test_dashboard_links_use_the_public_address_not_the_requests_host(tmp_path):
+    study, store, renderer = open_study(study_file(tmp_path, "coffee-rating", participants=2), tmp_path / "u.sqlite")
+    client = TestClient(create_app(study, store, renderer, public_url="https://study.example.org/lab"))
+    admin = {"Authorization": f"Bearer {store.meta('admin_token')}", "Host": "evil.example"}
+    people = client.get("/admin/api/status", headers=admin).json()["people"]
+    assert [p["link"] for p in people] == [
+        f"https://study.example.org/lab/p/{p['token']}" for p in store.participants()
+    ]
+    assert "evil.example" not in client.get("/admin", headers=admin).text
+    for bad in ("study.example.org", "ftp://study.example.org", "https://study.example.org/?x=1", "https://"):
+        with pytest.raises(ValueError, match="public address"):
+            create_app(study, store, renderer, public_url=bad)

@@ -213,6 +213,25 @@ def test_a_large_body_is_refused_before_it_is_read(running):
     assert Store(running.db).participant(token)["consent_at"] is None
 
 
+def test_the_request_log_shows_no_participant_link_or_admin_token(running):
+    token = Store(running.db).participants()[1]["token"]
+    with httpx.Client(base_url=running.base) as http:
+        assert http.get(f"/p/{token}").status_code == 200
+        assert http.get(f"/p/{token}/media/sunny-umbrella/demo").status_code == 200
+        assert http.get(f"/admin?token={ADMIN}", follow_redirects=False).status_code == 303
+        assert http.get(f"/admin/export/answers.csv?x=1&token={ADMIN}").status_code == 200
+    lines = [line for line in running.log.read_text().splitlines() if " HTTP/1.1" in line]
+    assert any('"GET /p/' in line for line in lines) and any('"GET /admin?token=' in line for line in lines), lines
+    leaked = [line for line in lines if token in line or ADMIN in line]
+    assert not leaked, leaked
+
+
+def test_dashboard_links_default_to_the_address_the_server_was_started_on(running):
+    admin = {"Authorization": f"Bearer {ADMIN}", "Host": "evil.example"}
+    people = httpx.get(running.base + "/admin/api/status", headers=admin).json()["people"]
+    assert people and all(p["link"].startswith(running.base + "/p/") for p in people), people[0]["link"]
+
+
 def test_the_server_listens_on_localhost_only(tmp_path):
     server = Server(study_file(tmp_path, "coffee-rating", participants=1), tmp_path / "bind.sqlite").start()
     try:

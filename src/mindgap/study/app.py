@@ -109,8 +109,32 @@ def paragraphs(text: str) -> list[str]:
     return [p.strip() for p in re.split(r"\n\s*\n", text or "") if p.strip()]
 
 
-def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: float = 120.0) -> FastAPI:
-    """The app for one study and its store (the store must be bound to the study)."""
+def public_base(url: str) -> str:
+    """A server's public address (``https://host[:port][/path]``) without its trailing slash.
+
+    Raises:
+        ValueError: not an http(s) address with a host, or one with a query or fragment.
+    """
+    parts = urlsplit(url)
+    if parts.scheme not in ("http", "https") or not parts.hostname or parts.query or parts.fragment:
+        raise ValueError(f"the public address must look like https://study.example.org[/path], got {url!r}")
+    return url.rstrip("/")
+
+
+def create_app(
+    study: Study,
+    store: Store,
+    renderer: Renderer,
+    *,
+    public_url: str = "http://127.0.0.1:8000",
+    live_lease: float = 120.0,
+) -> FastAPI:
+    """The app for one study and its store (the store must be bound to the study).
+
+    ``public_url`` is the server's address as participants reach it: the dashboard's
+    links are built from it, never from a request's ``Host`` header.
+    """
+    public = public_base(public_url)
     pkg = resources.files("mindgap.study")
     templates = Jinja2Templates(directory=str(pkg / "templates"))
     templates.env.filters["paragraphs"] = paragraphs
@@ -400,9 +424,9 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             r = RedirectResponse("/admin", status_code=303)
             r.set_cookie(COOKIE, admin_token, httponly=True, samesite="strict")
             return r
-        return page(request, "admin.html", **dashboard_data(request))
+        return page(request, "admin.html", **dashboard_data())
 
-    def dashboard_data(request: Request) -> dict:
+    def dashboard_data() -> dict:
         answers = store.answers()
         failed = export.sanity_failures(items, answers)
         by_person: dict[str, list] = {}
@@ -410,7 +434,6 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
         for a in answers:
             by_person.setdefault(a["participant"], []).append(a)
             by_item.setdefault(a["item_id"], []).append(a)
-        base = str(request.base_url).rstrip("/")
         people = []
         for p in store.participants():
             mine = by_person.get(p["label"], [])
@@ -418,7 +441,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             people.append(
                 dict(
                     label=p["label"],
-                    link=f"{base}/p/{p['token']}",
+                    link=f"{public}/p/{p['token']}",
                     condition=p["condition"],
                     stage=stage(p),
                     answered=len(mine),
@@ -464,7 +487,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
     @app.get("/admin/api/status")
     def status(request: Request):
         require_admin(request)
-        d = dashboard_data(request)
+        d = dashboard_data()
         return JSONResponse({k: d[k] for k in ("people", "items", "n_answers", "n_done", "n_failed", "live")})
 
     @app.get("/admin/export/{name}")
