@@ -63,11 +63,16 @@ def test_pictures_are_drawn_by_mindgap_and_served_only_to_their_participant(coff
     a, b = (p["token"] for p in store.participants()[:2])
     page = _to_items(client, a)
     item = hidden(page, "item_id")
-    img = client.get(f"/p/{a}/media/{item}/demo")
-    assert img.status_code == 200 and img.content[:8] == b"\x89PNG\r\n\x1a\n"
-    assert client.get(f"/p/{a}/media/{item}/a").status_code == 404  # a demo has no picture "a"
-    assert client.get(f"/p/{a}/media/no-such-item/demo").status_code == 404
-    assert client.get(f"/p/not-a-token/media/{item}/demo").status_code == 404
+    steps = re.findall(rf'src="/p/{a}/media/{item}/(step-\d+)"', page)  # a coffee demonstration: one per step
+    states = next(it for it in store.items() if it["id"] == item)["data"]["states"]
+    assert steps == [f"step-{k}" for k in range(len(states))]
+    for part in steps:
+        img = client.get(f"/p/{a}/media/{item}/{part}")
+        assert img.status_code == 200 and img.content[:8] == b"\x89PNG\r\n\x1a\n"
+    for part in ("a", "demo", f"step-{len(steps)}", "step-01"):  # parts this item does not have
+        assert client.get(f"/p/{a}/media/{item}/{part}").status_code == 404, part
+    assert client.get(f"/p/{a}/media/no-such-item/step-0").status_code == 404
+    assert client.get(f"/p/not-a-token/media/{item}/step-0").status_code == 404
 
 
 def test_a_second_participant_cannot_answer_for_the_first(coffee):

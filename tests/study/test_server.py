@@ -217,7 +217,7 @@ def test_the_request_log_shows_no_participant_link_or_admin_token(running):
     token = Store(running.db).participants()[1]["token"]
     with httpx.Client(base_url=running.base) as http:
         assert http.get(f"/p/{token}").status_code == 200
-        assert http.get(f"/p/{token}/media/sunny-umbrella/demo").status_code == 200
+        assert http.get(f"/p/{token}/media/sunny-umbrella/step-0").status_code == 200
         assert http.get(f"/admin?token={ADMIN}", follow_redirects=False).status_code == 303
         assert http.get(f"/admin/export/answers.csv?x=1&token={ADMIN}").status_code == 200
     lines = [line for line in running.log.read_text().splitlines() if " HTTP/1.1" in line]

@@ -261,7 +261,7 @@ def create_app(
             rating=rating,
             chosen=chosen,
             choices=CHOICES,
-            parts=("demo",) if item["kind"] == "demo" else ("a", "b"),
+            parts=renderer.parts(item),
         )
         return page(request, "item.html", status, **ctx)
 
@@ -400,7 +400,7 @@ def create_app(
     def media(token: str, item_id: str, part: str):
         p = who(token)
         item = item_of(p, item_id)
-        if part not in (("demo",) if item["kind"] == "demo" else ("a", "b")):
+        if part not in dict(renderer.parts(item)):
             raise HTTPError(404, "Unknown picture", f"Item {item_id!r} has no picture {part!r}.")
         path = renderer.path(item, part, p["condition"])
         return FileResponse(path, headers={"Cache-Control": "private, max-age=3600"})
