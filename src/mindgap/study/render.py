@@ -81,7 +81,7 @@ class Renderer:
     def key(self, item: dict, part: str, condition: str, ext: str) -> str:
         """A hash of what decides the picture: the domain, the item's data, the part, the condition, the format."""
         what = [DRAWING_VERSION, self.study.domain, self._world_file(), item["data"], part, condition, ext]
-        return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:16]
+        return hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
     def path(self, item: dict, part: str, condition: str) -> Path:
         """The picture of ``part`` (one of :meth:`parts`) of ``item``, drawn on first use."""
