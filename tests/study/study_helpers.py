@@ -6,6 +6,7 @@ import re
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -34,9 +35,11 @@ def free_port() -> int:
 class Server:
     """``mindgap study serve`` in a subprocess (a real uvicorn server)."""
 
-    def __init__(self, config: Path, db: Path, port: int | None = None, extra: tuple[str, ...] = ()):
+    def __init__(
+        self, config: Path, db: Path, port: int | None = None, extra: tuple[str, ...] = (), quiet: bool = True
+    ):
         self.config, self.db, self.port = config, db, port or free_port()
-        self.extra = extra
+        self.extra, self.quiet = extra, quiet
         self.proc: subprocess.Popen | None = None
         self.log = db.with_suffix(".log")
 
@@ -56,7 +59,7 @@ class Server:
             "--db",
             str(self.db),
         ]
-        cmd += ["--port", str(self.port), "--admin-token", ADMIN, "--quiet", *self.extra]
+        cmd += ["--port", str(self.port), "--admin-token", ADMIN, *(["--quiet"] if self.quiet else []), *self.extra]
         with self.log.open("ab") as log:
             self.proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + timeout
@@ -104,24 +107,32 @@ class Participant:
     """A scripted participant: answers whatever page the server shows next.
 
     ``rate(item_id)`` gives each rating; ``acked`` collects ``{item_id: (rating, outcome)}``
-    for every answer the server acknowledged (a 303 after the answer was stored).
+    for every answer the server acknowledged (a 303 after the answer was stored);
+    ``statuses`` every response's status code. With ``double_submit`` each answer form is
+    sent twice at once (a double click, or a retried request, racing the first), the
+    second copy from ``second`` (another connection), when given.
     """
 
-    def __init__(self, http, token: str, rate, double_submit: bool = False):
+    def __init__(self, http, token: str, rate, double_submit: bool = False, second=None):
         self.http, self.token, self.rate, self.double = http, token, rate, double_submit
+        self.second = second or http
         self.acked: dict[str, tuple[float, str]] = {}
+        self.statuses: list[int] = []
         self.code = ""
         self.requests = 0
 
     def get(self) -> str:
         self.requests += 1
         r = self.http.get(f"/p/{self.token}")
+        self.statuses.append(r.status_code)
         assert r.status_code == 200, (r.status_code, r.text[:500])
         return r.text
 
-    def post(self, what: str, data: dict):
+    def post(self, what: str, data: dict, http=None):
         self.requests += 1
-        return self.http.post(f"/p/{self.token}/{what}", data=data, follow_redirects=False)
+        r = (http or self.http).post(f"/p/{self.token}/{what}", data=data, follow_redirects=False)
+        self.statuses.append(r.status_code)
+        return r
 
     def step(self) -> bool:
         """Answer the current page; False once the completion code is shown."""
@@ -149,11 +160,18 @@ class Participant:
             else:
                 rating = self.rate(item)
                 data["choice"] = rating
+            copy: list = []
+            if self.double:  # the same form sent again at once (a double click or a retried request)
+                racer = threading.Thread(target=lambda: copy.append(self.post("answer", data, self.second)))
+                racer.start()
             r = self.post("answer", data)
-            if self.double:  # the same form sent again (a double click or a retried request)
-                r2 = self.post("answer", data)
+            if self.double:
+                racer.join()
+                r2 = copy[0]
                 assert r2.status_code == 303 and r2.headers["x-answer"] in ("duplicate", "stored"), r2.text[:500]
+                assert {r.headers["x-answer"], r2.headers["x-answer"]} == {"stored", "duplicate"}
             assert r.status_code == 303, (r.status_code, r.text[:500])
+            assert r.headers["x-answer"] in ("stored", "duplicate", "answered"), r.headers.get("x-answer")
             self.acked[item] = (rating, r.headers["x-answer"])
         assert r.status_code == 303, (action, r.status_code, r.text[:500])
         return True

@@ -1,7 +1,9 @@
 """The participant flow, the dashboard and bad input, in process (starlette's TestClient)."""
 
 import dataclasses
+import html
 import json
+import re
 
 import pytest
 from fastapi.testclient import TestClient
@@ -9,6 +11,8 @@ from study_helpers import ADMIN, Participant, hidden, study_file
 
 from mindgap.study.app import create_app
 from mindgap.study.server import open_study
+
+GRID = {"source": "random", "count": 3, "length": 10}
 
 
 def _app(tmp_path, example="coffee-rating", **changes):
@@ -59,11 +63,16 @@ def test_pictures_are_drawn_by_mindgap_and_served_only_to_their_participant(coff
     a, b = (p["token"] for p in store.participants()[:2])
     page = _to_items(client, a)
     item = hidden(page, "item_id")
-    img = client.get(f"/p/{a}/media/{item}/demo")
-    assert img.status_code == 200 and img.content[:8] == b"\x89PNG\r\n\x1a\n"
-    assert client.get(f"/p/{a}/media/{item}/a").status_code == 404  # a demo has no picture "a"
-    assert client.get(f"/p/{a}/media/no-such-item/demo").status_code == 404
-    assert client.get(f"/p/not-a-token/media/{item}/demo").status_code == 404
+    steps = re.findall(rf'src="/p/{a}/media/{item}/(step-\d+)"', page)  # a coffee demonstration: one per step
+    states = next(it for it in store.items() if it["id"] == item)["data"]["states"]
+    assert steps == [f"step-{k}" for k in range(len(states))]
+    for part in steps:
+        img = client.get(f"/p/{a}/media/{item}/{part}")
+        assert img.status_code == 200 and img.content[:8] == b"\x89PNG\r\n\x1a\n"
+    for part in ("a", "demo", f"step-{len(steps)}", "step-01"):  # parts this item does not have
+        assert client.get(f"/p/{a}/media/{item}/{part}").status_code == 404, part
+    assert client.get(f"/p/{a}/media/no-such-item/step-0").status_code == 404
+    assert client.get(f"/p/not-a-token/media/{item}/step-0").status_code == 404
 
 
 def test_a_second_participant_cannot_answer_for_the_first(coffee):
@@ -89,9 +98,9 @@ def test_bad_answers_get_clear_errors_and_are_not_stored(coffee):
     token = store.participants()[0]["token"]
     page = _to_items(client, token)
     base = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "sub-000000001"}
-    for bad in ("11", "-1", "nan", "seven", ""):
+    for bad in ("11", "-1", "nan", "seven"):
         r = client.post(f"/p/{token}/answer", data={**base, "rating": bad})
-        assert r.status_code == 422 and "from 0 to 10" in r.text, bad
+        assert r.status_code == 200 and "from 0 to 10" in _error(r.text), bad  # back on the item page
     r = client.post(f"/p/{token}/answer", data={**base, "item_id": "no-such-item", "rating": "5"})
     assert r.status_code == 404 and "no-such-item" in r.text
     order = json.loads(store.participants()[0]["item_order"])
@@ -133,7 +142,7 @@ def test_answers_faster_than_the_minimum_time_are_refused(tmp_path):
         "rating": "4",
     }
     r = client.post(f"/p/{token}/answer", data=form)
-    assert r.status_code == 422 and "at least 30 seconds" in r.text
+    assert r.status_code == 200 and "at least 30 seconds" in _error(r.text)  # back on the item page
     assert store.answers() == []
 
 
@@ -200,8 +209,147 @@ def test_comparison_items_show_two_pictures_and_take_a_choice(tmp_path):
         img = client.get(f"/p/{token}/media/{item}/{part}")
         assert img.status_code == 200 and img.content[:4] == b"\x89PNG"
     form = {"csrf": hidden(page, "csrf"), "item_id": item, "submission_id": "choice-0001"}
-    assert client.post(f"/p/{token}/answer", data={**form, "choice": "c"}).status_code == 422
+    r = client.post(f"/p/{token}/answer", data={**form, "choice": "c"}, follow_redirects=False)
+    assert _error(client.get(_refused(r, token)).text) == "Please choose A, B or can't tell."
+    kept = client.get(f"/p/{token}?item={item}&refused=choice&choice=b").text  # a refused choice comes back
+    assert re.search(r'value="b" id="choice-b"[^>]* checked', kept) and _error(kept).startswith("Please choose")
     r = client.post(f"/p/{token}/answer", data={**form, "choice": "equal"}, follow_redirects=False)
     assert r.status_code == 303
     assert [(a["choice"], a["value"]) for a in store.answers()] == [("equal", 0.5)]
     assert dataclasses.asdict(study)["protocol"] == "preference"
+
+
+def test_a_new_store_under_an_old_name_serves_its_own_pictures(tmp_path):
+    def first_picture(seed, db):
+        config = study_file(tmp_path, "grid7-rating", participants=1, min_seconds=0, items={**GRID, "seed": seed})
+        study, store, renderer = open_study(config, db, ADMIN)
+        client = TestClient(create_app(study, store, renderer))
+        token = store.participants()[0]["token"]
+        item = store.items()[0]["id"]
+        img = client.get(f"/p/{token}/media/{item}/demo")
+        assert img.status_code == 200
+        store.close()
+        return item, img.content
+
+    db = tmp_path / "same-name.sqlite"
+    item0, old = first_picture(0, db)
+    for f in tmp_path.glob("same-name.sqlite*"):  # the researcher deletes the store, not its pictures
+        if f.is_file():
+            f.unlink()
+    item1, new = first_picture(1, db)
+    _, fresh = first_picture(1, tmp_path / "elsewhere.sqlite")
+    assert item0 == item1  # the same item id with another path
+    assert new == fresh and new != old
+
+
+def test_a_form_without_a_length_is_read_only_up_to_the_limit(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    csrf = hidden(client.get(f"/p/{token}").text, "csrf")
+    chunks = iter([f"csrf={csrf}&agree=yes&pad=".encode(), b"a" * 40_000, b"a" * 40_000])  # sent chunked
+    r = client.post(
+        f"/p/{token}/consent", content=chunks, headers={"Content-Type": "application/x-www-form-urlencoded"}
+    )
+    assert r.status_code == 413 and "at most 64 KiB" in r.text
+    r = client.post(f"/p/{token}/consent", files={"agree": ("agree.txt", b"yes")}, data={"csrf": csrf})
+    assert r.status_code == 415  # the pages send URL-encoded forms only
+    assert store.participant(token)["consent_at"] is None
+    r = client.post(f"/p/{token}/consent", data={"csrf": csrf, "agree": "yes"}, follow_redirects=False)
+    assert r.status_code == 303 and store.participant(token)["consent_at"] is not None
+
+
+def _range_tag(page: str) -> str:
+    m = re.search(r'<input type="range"[^>]*>', page)
+    assert m, page[:2000]
+    return m.group(0)
+
+
+def _error(page: str) -> str:
+    """The error message a page shows ('' when none)."""
+    m = re.search(r'<p class="error" role="alert">([^<]*)</p>', page)
+    return html.unescape(m.group(1)) if m else ""
+
+
+def _refused(r, token):
+    """A refused answer: 303 back to the participant's page, marked ``X-Answer: refused``."""
+    assert r.status_code == 303 and r.headers["x-answer"] == "refused", (r.status_code, r.text[:300])
+    assert r.headers["location"].startswith(f"/p/{token}?")
+    return r.headers["location"]
+
+
+def test_the_slider_has_no_value_until_it_is_moved_and_an_answer_without_one_is_refused(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    slider = _range_tag(page)
+    assert "value=" not in slider and "name=" not in slider  # nothing is sent until the participant moves it
+    assert re.search(r'id="rating-value">\s*–\s*<', page)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "untouched-1"}
+    for missing in ({}, {"rating": ""}):
+        where = _refused(client.post(f"/p/{token}/answer", data={**form, **missing}, follow_redirects=False), token)
+        again = client.get(where)
+        assert (
+            again.status_code == 200
+            and _error(again.text) == "Please move the slider to give your rating (from 0 to 10)."
+        )
+        assert hidden(again.text, "item_id") == form["item_id"]
+    assert store.answers() == []
+
+
+def test_ratings_must_be_plain_numbers_on_the_scales_steps(tmp_path):
+    study, store, client = _app(tmp_path, "grid7-rating", min_seconds=0, rating={"min": 1, "max": 7, "step": 0.5})
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "strict-0001"}
+    for bad in ("6.25", "1e1", "0.5", "7.5", "nan", "inf", "seven", " 6", "6.", ".5", "0x6", "+6", "6,5", "１"):
+        where = _refused(client.post(f"/p/{token}/answer", data={**form, "rating": bad}, follow_redirects=False), token)
+        assert _error(client.get(where).text) == "The rating must be a number from 1 to 7 in steps of 0.5.", bad
+    assert store.answers() == []
+    r = client.post(f"/p/{token}/answer", data={**form, "rating": "6.50"}, follow_redirects=False)
+    assert r.status_code == 303 and r.headers["x-answer"] == "stored"
+    assert [a["value"] for a in store.answers()] == [6.5]
+
+
+def test_a_step_1_scale_refuses_halves(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    form = {"csrf": hidden(page, "csrf"), "item_id": hidden(page, "item_id"), "submission_id": "half-00001"}
+    for bad in ("5.5", "1e1", "10e0"):
+        r = client.post(f"/p/{token}/answer", data={**form, "rating": bad}, follow_redirects=False)
+        assert _error(client.get(_refused(r, token)).text) == "The rating must be a number from 0 to 10 in steps of 1."
+    assert store.answers() == []
+
+
+def test_a_refused_answer_comes_back_as_its_item_page_with_the_message_and_the_chosen_value(tmp_path):
+    study, store, client = _app(tmp_path, min_seconds=30)
+    token = store.participants()[0]["token"]
+    page = _to_items(client, token)
+    item = hidden(page, "item_id")
+    form = {"csrf": hidden(page, "csrf"), "item_id": item, "submission_id": "too-fast-0001", "rating": "7"}
+    where = _refused(client.post(f"/p/{token}/answer", data=form, follow_redirects=False), token)
+    again = client.get(where)  # post/redirect/get: a reload or Back shows this page again, no resubmission
+    assert again.status_code == 200 and _error(again.text) == "Please take at least 30 seconds to look at each item."
+    assert hidden(again.text, "item_id") == item
+    slider = _range_tag(again.text)
+    assert 'value="7"' in slider and 'name="rating"' in slider  # the chosen value is kept
+    assert re.search(r'id="rating-value">\s*7\s*<', again.text)
+    # the address is checked, not echoed: another item's refusal or a made-up value shows nothing
+    for query in ("item=sunny-nothing&refused=too-fast&rating=7", f"item={item}&refused=made-up&rating=<b>"):
+        shown = client.get(f"/p/{token}?{query}").text
+        assert _error(shown) == "" and "<b>" not in shown and "value=" not in _range_tag(shown)
+    assert store.answers() == []
+
+
+def test_dashboard_links_use_the_public_address_not_the_requests_host(tmp_path):
+    study, store, renderer = open_study(study_file(tmp_path, "coffee-rating", participants=2), tmp_path / "u.sqlite")
+    client = TestClient(create_app(study, store, renderer, public_url="https://study.example.org/lab"))
+    admin = {"Authorization": f"Bearer {store.meta('admin_token')}", "Host": "evil.example"}
+    people = client.get("/admin/api/status", headers=admin).json()["people"]
+    assert [p["link"] for p in people] == [
+        f"https://study.example.org/lab/p/{p['token']}" for p in store.participants()
+    ]
+    assert "evil.example" not in client.get("/admin", headers=admin).text
+    for bad in ("study.example.org", "ftp://study.example.org", "https://study.example.org/?x=1", "https://"):
+        with pytest.raises(ValueError, match="public address"):
+            create_app(study, store, renderer, public_url=bad)

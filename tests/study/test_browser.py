@@ -82,12 +82,17 @@ def test_a_participant_completes_the_coffee_study_in_chromium_and_gerel_fits_it(
         for k in range(9):
             assert page.text_content(".progress") == f"item {k + 1} of 9"
             item = page.input_value("input[name=item_id]")
-            page.wait_for_function("document.querySelector('main img').complete")
-            assert page.eval_on_selector("main img", "img => img.naturalWidth") > 300  # the strip was drawn
+            page.wait_for_function("[...document.querySelectorAll('main img')].every(i => i.complete)")
+            widths = page.eval_on_selector_all("main img", "imgs => imgs.map(i => i.naturalWidth)")
+            assert len(widths) >= 5 and min(widths) >= 200, widths  # every step of the strip was drawn
             if k == 2:
                 page.reload()  # progress is kept: the same item comes back
                 assert page.input_value("input[name=item_id]") == item
-            page.fill("#rating", str(RATINGS[item]))
+            if k == 0:  # the slider starts without a value; Next waits for it past the minimum time
+                assert page.text_content("#rating-value").strip() == "–"
+                page.wait_for_timeout(800)
+                assert page.is_disabled("#submit")
+            page.fill("#rating", str(RATINGS[item]))  # moves the slider (input and change events)
             assert page.text_content("#rating-value") == str(RATINGS[item])  # the slider's value is shown
             if k == 0:
                 _shot(page, "3-rating-item")
@@ -118,6 +123,62 @@ def test_a_participant_completes_the_coffee_study_in_chromium_and_gerel_fits_it(
     assert [f["participant"] for f in fit] == ["p-001"]
     assert 0.0 <= float(fit[0]["spill_learned"]) <= 1.0
     assert float(fit[0]["coffee_weight_learned"]) > 0  # every delivering demonstration beat the sanity check
+
+
+PHONE = {"width": 360, "height": 740}
+
+
+def _fits(page) -> None:
+    """Nothing sticks out sideways at the phone's width (the page never scrolls horizontally)."""
+    width = page.evaluate("document.documentElement.scrollWidth")
+    assert width <= PHONE["width"], f"{page.url}: {width} px wide"
+
+
+def test_the_pages_fit_a_phone_screen_and_their_labels_stay_readable(browser, tmp_path):
+    config = study_file(tmp_path, "coffee-rating", participants=1, min_seconds=0)
+    server = Server(config, tmp_path / "phone.sqlite").start()
+    try:
+        link = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
+        context = browser.new_context(viewport=PHONE, device_scale_factor=2, is_mobile=True, has_touch=True)
+        page = context.new_page()
+        page.goto(link["people"][0]["link"])
+        _fits(page)
+        with page.expect_navigation():
+            page.click("#agree")
+        _fits(page)
+        with page.expect_navigation():
+            page.click("#continue")
+        _fits(page)
+        # each Likert row: its options side by side in one row inside the screen, large enough to tap
+        rows = page.query_selector_all(".likert")
+        assert len(rows) == 2
+        for row in rows:
+            boxes = [o.bounding_box() for o in row.query_selector_all("label")]
+            assert len({round(b["y"]) for b in boxes}) == 1, boxes
+            assert min(b["x"] for b in boxes) >= 0 and max(b["x"] + b["width"] for b in boxes) <= PHONE["width"]
+            assert min(b["height"] for b in boxes) >= 40 and min(b["width"] for b in boxes) >= 40
+        page.check("input[name=q1][value='4']")
+        page.check("input[name=q2][value='2']")
+        _shot(page, "7-phone-questionnaire")
+        with page.expect_navigation():
+            page.click("#continue")
+        page.wait_for_function("[...document.querySelectorAll('main img')].every(i => i.complete)")
+        _fits(page)
+        sizes = page.eval_on_selector_all(
+            ".steps figcaption", "fs => fs.map(f => parseFloat(getComputedStyle(f).fontSize))"
+        )
+        assert sizes and min(sizes) >= 12, sizes
+        shown = page.eval_on_selector_all(".steps img", "imgs => imgs.map(i => i.getBoundingClientRect().width)")
+        assert min(shown) >= 140, shown  # the pictures' own labels (7 pt in a 1.1 in picture) come out at 12 px or more
+        page.fill("#rating", "7")
+        _fits(page)
+        _shot(page, "7-phone-rating-item")
+        with page.expect_navigation():
+            page.click("#submit")
+        assert page.text_content(".progress") == "item 2 of 9"
+        context.close()
+    finally:
+        server.stop()
 
 
 @pytest.mark.skipif(_shots() is None, reason="screenshots only: set MINDGAP_STUDY_SCREENSHOTS=docs/study")

@@ -1,12 +1,15 @@
 """A real server process: 50 concurrent participants, a SIGKILL mid-study, the address it binds."""
 
 import random
+import re
+import socket
 import threading
 import time
+from collections import Counter
 
 import httpx
 import pytest
-from study_helpers import ADMIN, Participant, Server, study_file
+from study_helpers import ADMIN, Participant, Server, hidden, study_file
 
 from mindgap.study.store import Store
 
@@ -33,6 +36,7 @@ def _check_stored_once(db, acked: dict[tuple[str, str], float]):
 
 
 def test_fifty_participants_at_once_every_answer_stored_once(tmp_path):
+    """The issue's load test: every acknowledged answer stored exactly once, no 5xx, no spurious 409."""
     config = study_file(tmp_path, "coffee-rating", participants=N_LOAD, min_seconds=0)
     server = Server(config, tmp_path / "load.sqlite").start()
     try:
@@ -40,13 +44,17 @@ def test_fifty_participants_at_once_every_answer_stored_once(tmp_path):
         people, errors = [], []
 
         def one(i, token):
-            try:
-                with httpx.Client(base_url=server.base, timeout=30.0) as http:
-                    p = Participant(http, token, _rating(i), double_submit=i % 5 == 0)  # every fifth double-clicks
-                    people.append(p)
+            with (
+                httpx.Client(base_url=server.base, timeout=30.0) as http,
+                httpx.Client(base_url=server.base, timeout=30.0) as second,
+            ):
+                # every fifth participant double-clicks: each answer sent twice at once
+                p = Participant(http, token, _rating(i), double_submit=i % 5 == 0, second=second)
+                people.append(p)
+                try:
                     p.run()
-            except Exception as e:  # noqa: BLE001 - reported below with the participant
-                errors.append((i, repr(e)))
+                except Exception as e:  # noqa: BLE001 - reported below with the participant
+                    errors.append((i, repr(e)))
 
         threads = [threading.Thread(target=one, args=(i, t)) for i, t in enumerate(tokens)]
         start = time.perf_counter()
@@ -56,19 +64,75 @@ def test_fifty_participants_at_once_every_answer_stored_once(tmp_path):
             t.join(timeout=120)
         wall = time.perf_counter() - start
         assert not any(t.is_alive() for t in threads), "participants still running after 120 s"
+        codes = Counter(c for p in people for c in p.statuses)
+        assert not [c for c in codes if c >= 500], codes
+        assert codes[409] == 0, codes
         assert not errors, errors[:3]
         acked = {(p.token, item): float(v) for p in people for item, (v, _) in p.acked.items()}
         assert len(acked) == N_LOAD * 9 and all(p.code for p in people)
         stored = _check_stored_once(server.db, acked)
         assert len(stored) == N_LOAD * 9
-        requests = sum(p.requests for p in people)
         status = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
         assert status["n_done"] == N_LOAD and status["n_answers"] == N_LOAD * 9
         print(
-            f"\nload: {N_LOAD} participants, {len(acked)} answers, {requests} requests in {wall:.1f} s "
-            f"({len(acked) / wall:.0f} answers/s, {requests / wall:.0f} requests/s)"
+            f"\nload: {N_LOAD} participants, {len(acked)} answers acknowledged, {len(stored)} stored, "
+            f"{codes.total()} requests in {wall:.1f} s ({len(acked) / wall:.0f} answers/s); "
+            f"statuses {dict(sorted(codes.items()))}"
         )
         assert wall < 120
+    finally:
+        server.stop()
+
+
+def test_the_same_answer_sent_many_times_at_once_is_acknowledged_every_time_and_stored_once(tmp_path):
+    people, copies = 5, 8
+    config = study_file(tmp_path, "coffee-rating", participants=people, min_seconds=0)
+    server = Server(config, tmp_path / "same.sqlite").start()
+    statuses, errors = [], []
+
+    def one(i, token):
+        clients = [httpx.Client(base_url=server.base, timeout=30.0) for _ in range(copies)]
+        try:
+            p = Participant(clients[0], token, _rating(i))
+            while 'name="item_id"' not in (html := p.get()):
+                p.step()
+            while 'name="item_id"' in html:
+                form = {k: hidden(html, k) for k in ("csrf", "item_id", "submission_id")}
+                form["rating"] = str(_rating(i)(form["item_id"]))
+                together = threading.Barrier(copies)
+
+                def send(http):
+                    together.wait()
+                    r = http.post(f"/p/{token}/answer", data=form, follow_redirects=False)
+                    title = re.search(r"<title>([^<]*)", r.text)
+                    statuses.append((r.status_code, r.headers.get("x-answer"), title and title.group(1)))
+
+                senders = [threading.Thread(target=send, args=(c,)) for c in clients]
+                for t in senders:
+                    t.start()
+                for t in senders:
+                    t.join()
+                html = p.get()
+        except Exception as e:  # noqa: BLE001 - reported below with the participant
+            errors.append((i, repr(e)))
+        finally:
+            for c in clients:
+                c.close()
+
+    try:
+        tokens = [p["token"] for p in Store(server.db).participants()]
+        threads = [threading.Thread(target=one, args=(i, t)) for i, t in enumerate(tokens)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout=120)
+        assert not errors, errors[:3]
+        refused = [s for s in statuses if s[0] != 303 or s[1] not in ("stored", "duplicate")]
+        assert not refused, f"{len(refused)} of {len(statuses)} identical submits refused: {refused[:3]}"
+        assert len(statuses) == people * 9 * copies
+        assert sum(s[1] == "stored" for s in statuses) == people * 9
+        rows = Store(server.db).conn().execute("SELECT participant_id, item_id FROM answers").fetchall()
+        assert len(rows) == len(set(map(tuple, rows))) == people * 9
     finally:
         server.stop()
 
@@ -114,6 +178,58 @@ def test_a_killed_server_loses_no_acknowledged_answer_and_participants_continue(
         server.stop()
         for p in people:
             p.http.close()
+
+
+@pytest.fixture(scope="module")
+def running(tmp_path_factory):
+    """One server with its request log on, shared by the checks below that change nothing they share."""
+    tmp = tmp_path_factory.mktemp("running")
+    server = Server(study_file(tmp, "coffee-rating", participants=3, min_seconds=0), tmp / "run.sqlite", quiet=False)
+    server.start()
+    yield server
+    server.stop()
+
+
+def _raw_post(server, path: str, length: int, sent: bytes) -> str:
+    """POST announcing a ``length``-byte body but sending only ``sent``; the status line that comes back."""
+    head = (
+        f"POST {path} HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\n"
+        f"Content-Type: application/x-www-form-urlencoded\r\nContent-Length: {length}\r\n\r\n"
+    )
+    with socket.create_connection(("127.0.0.1", server.port), timeout=20) as s:
+        s.sendall(head.encode() + sent)
+        reply = s.recv(4096)  # a server that waits for the whole body times out here
+    return reply.split(b"\r\n", 1)[0].decode()
+
+
+def test_a_large_body_is_refused_before_it_is_read(running):
+    token = Store(running.db).participants()[0]["token"]
+    huge = 200_000_000  # announced, never sent: the answer must come without reading it
+    assert _raw_post(running, "/p/doesnotexist/consent", huge, b"csrf=x&agree=") == "HTTP/1.1 404 Not Found"
+    assert _raw_post(running, f"/p/{token}/consent", huge, b"csrf=x&agree=") == "HTTP/1.1 413 Request Entity Too Large"
+    assert _raw_post(running, f"/p/{token}/consent", 70_000, b"a" * 70_000).startswith("HTTP/1.1 413")
+    r = httpx.post(f"{running.base}/admin/participants", content=b"count=1&" * 10_000)
+    assert r.status_code == 401  # the admin token is checked first too
+    assert Store(running.db).participant(token)["consent_at"] is None
+
+
+def test_the_request_log_shows_no_participant_link_or_admin_token(running):
+    token = Store(running.db).participants()[1]["token"]
+    with httpx.Client(base_url=running.base) as http:
+        assert http.get(f"/p/{token}").status_code == 200
+        assert http.get(f"/p/{token}/media/sunny-umbrella/step-0").status_code == 200
+        assert http.get(f"/admin?token={ADMIN}", follow_redirects=False).status_code == 303
+        assert http.get(f"/admin/export/answers.csv?x=1&token={ADMIN}").status_code == 200
+    lines = [line for line in running.log.read_text().splitlines() if " HTTP/1.1" in line]
+    assert any('"GET /p/' in line for line in lines) and any('"GET /admin?token=' in line for line in lines), lines
+    leaked = [line for line in lines if token in line or ADMIN in line]
+    assert not leaked, leaked
+
+
+def test_dashboard_links_default_to_the_address_the_server_was_started_on(running):
+    admin = {"Authorization": f"Bearer {ADMIN}", "Host": "evil.example"}
+    people = httpx.get(running.base + "/admin/api/status", headers=admin).json()["people"]
+    assert people and all(p["link"].startswith(running.base + "/p/") for p in people), people[0]["link"]
 
 
 def test_the_server_listens_on_localhost_only(tmp_path):

@@ -70,6 +70,22 @@ def test_answers_are_recorded_exactly_once(tmp_path, study):
     assert sorted((a["participant"], a["value"]) for a in store.answers()) == [("p-001", 7.0), ("p-002", 2.0)]
 
 
+def test_order_and_viewing_time_are_checked_in_the_answers_transaction(tmp_path, study):
+    store = _bound(tmp_path / "s.sqlite", study)
+    order = ["sunny-umbrella", "rainy-umbrella"]
+    assert store.record_answer(1, "rainy-umbrella", 7.0, None, "sub-00000001", order=order) == "out-of-order"
+    record = dict(order=order, min_seconds=60.0)
+    assert store.record_answer(1, "sunny-umbrella", 7.0, None, "sub-00000002", **record) == "not-shown"
+    store.first_view(1, "sunny-umbrella")
+    assert store.record_answer(1, "sunny-umbrella", 7.0, None, "sub-00000003", **record) == "too-fast"
+    assert store.answers() == []
+    record["min_seconds"] = 0.0
+    assert store.record_answer(1, "sunny-umbrella", 7.0, None, "sub-00000004", **record) == "stored"
+    # the same form again once the item is no longer the current one: still its own outcome, not out of order
+    assert store.record_answer(1, "sunny-umbrella", 7.0, None, "sub-00000004", **record) == "duplicate"
+    assert store.record_answer(1, "sunny-umbrella", 7.0, None, "sub-00000005", **record) == "answered"
+
+
 def test_live_queries_go_to_one_participant_and_can_be_withdrawn(tmp_path):
     study = load_study(EXAMPLES / "terrain-live.yaml")
     store = _bound(tmp_path / "s.sqlite", study)

@@ -4,6 +4,7 @@ mindgap study examples                                   # list the example stud
 mindgap study examples coffee-rating --out study.yaml    # copy one
 mindgap study check --config study.yaml                  # parse it, build its items
 mindgap study serve --config study.yaml [--db FILE] [--host 127.0.0.1] [--port 8000] [--admin-token T]
+                    [--public-url https://study.example.org]
 mindgap study links --db FILE [--base http://host:port]  # the participants' personal links
 mindgap study export --db FILE --out DIR [--partial]     # ratings.csv or preferences.json, answers.csv/json
 """
@@ -26,7 +27,12 @@ def add_parser(sub) -> None:
     s.add_argument(
         "--admin-token", help="dashboard token (default: $MINDGAP_STUDY_ADMIN_TOKEN, or made once per store)"
     )
-    s.add_argument("--quiet", action="store_true", help="no request log")
+    s.add_argument(
+        "--public-url",
+        help="the server's address as participants reach it, for the dashboard's links "
+        "(default: http://HOST:PORT it was started on)",
+    )
+    s.add_argument("--quiet", action="store_true", help="no request log (tokens in it are masked)")
     c = ss.add_parser("check", help="parse a study file and build its items")
     c.add_argument("--config", type=Path, required=True)
     ln = ss.add_parser("links", help="print the participants' personal links")
@@ -84,7 +90,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--port must be 1..65535, got {args.port}")
         from ..study.server import serve
 
-        serve(args.config, args.db, args.host, args.port, args.admin_token, quiet=args.quiet)
+        serve(
+            args.config, args.db, args.host, args.port, args.admin_token, quiet=args.quiet, public_url=args.public_url
+        )
         return 0
     from ..study.store import Store
 

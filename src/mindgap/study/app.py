@@ -2,7 +2,8 @@
 
 The framework is FastAPI (routing, forms, a thread pool for the blocking store) with
 Jinja2 templates rendered on the server; the only JavaScript shows the slider's value
-and holds the submit button for the minimum time. What is ours is the study logic:
+and holds the submit button until the slider was moved and the minimum time is over.
+What is ours is the study logic:
 
 * **Flow** (dissertation's MTurk studies, Figs. 9–11, 32–33): personal link → consent →
   instructions → questionnaire → one item per page → completion code. Every step is a
@@ -16,9 +17,12 @@ and holds the submit button for the minimum time. What is ours is the study logi
   per-store secret, checked on POST; cross-site POSTs (``Origin`` of another host,
   ``Sec-Fetch-Site: cross-site``) are refused before that.
 * **Bad input** gets a page saying what was wrong with a 4xx status: an unknown link
-  (404), a wrong form token (403), an unknown item (404), an item out of order (409), a
-  rating out of range or an unknown choice (422), an answer faster than the study's
-  minimum time (422).
+  (404, checked before the form is read), a form over 64 KiB (413), a wrong form token
+  (403), an unknown item (404), an item out of order (409).
+* **A refused answer** (no rating: the slider starts without a value and must be moved;
+  a rating off the scale or its steps; an unknown choice; an answer faster than the
+  study's minimum time) redirects back to the item (303, ``X-Answer: refused``), whose
+  page says why and keeps the chosen value, so Back and reload never resend the form.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ import re
 import secrets
 import statistics
 import time
+from decimal import Decimal
 from importlib import resources
-from urllib.parse import urlsplit
+from urllib.parse import parse_qsl, urlencode, urlsplit
 
 from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
@@ -45,6 +50,8 @@ from .render import Renderer
 from .store import LIVE_PREFIX, Store
 
 _SUBMISSION = re.compile(r"^[A-Za-z0-9_-]{8,64}$")
+MAX_FORM = 64 * 1024  # bytes: the largest form a page sends is well under 1 KiB
+_PLAIN = re.compile(r"-?[0-9]{1,9}(\.[0-9]{1,9})?")
 COOKIE = "mindgap_admin"
 CHOICES = {"a": "A", "b": "B", "equal": "can't tell"}
 CSP = (
@@ -58,13 +65,76 @@ class HTTPError(Exception):
         self.status, self.title, self.text = status, title, text
 
 
+async def read_form(request: Request) -> dict[str, str]:
+    """The URL-encoded form of a POST, refused (413) when it is over :data:`MAX_FORM` bytes.
+
+    A larger ``Content-Length`` is refused before any of the body is read, and a body
+    without one (chunked) is read only up to the limit.
+    """
+    too_large = HTTPError(413, "Form too large", f"A study form is at most {MAX_FORM // 1024} KiB.")
+    length = request.headers.get("content-length")
+    if length is not None and (not length.isdigit() or int(length) > MAX_FORM):
+        raise too_large
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/x-www-form-urlencoded":
+        raise HTTPError(415, "Not a form", "Answers are sent by the study page's forms.")
+    body = bytearray()
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > MAX_FORM:
+            raise too_large
+    try:
+        return dict(parse_qsl(body.decode("utf-8"), keep_blank_values=True, max_num_fields=100))
+    except (UnicodeDecodeError, ValueError):
+        raise HTTPError(400, "Bad form", "This form could not be read. Please reload the page.") from None
+
+
+def parse_rating(raw: str, lo: float, hi: float, step: float) -> float | None:
+    """A rating written as a plain decimal in ``[lo, hi]`` on the grid ``lo + k·step``; None otherwise.
+
+    Exact (decimal) arithmetic, so 6.5 is on a 0.5 grid and 0.3 on a 0.1 grid; ``1e1``,
+    ``nan``, ``+6`` and other spellings a slider never sends are refused.
+    """
+    if not _PLAIN.fullmatch(raw):
+        return None
+    v = Decimal(raw)
+    d_lo, d_hi, d_step = (Decimal(repr(float(x))) for x in (lo, hi, step))
+    if not d_lo <= v <= d_hi or (v - d_lo) % d_step != 0:
+        return None
+    return float(v)
+
+
 def paragraphs(text: str) -> list[str]:
     """Blank-line-separated paragraphs of a study text (escaped by the template)."""
     return [p.strip() for p in re.split(r"\n\s*\n", text or "") if p.strip()]
 
 
-def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: float = 120.0) -> FastAPI:
-    """The app for one study and its store (the store must be bound to the study)."""
+def public_base(url: str) -> str:
+    """A server's public address (``https://host[:port][/path]``) without its trailing slash.
+
+    Raises:
+        ValueError: not an http(s) address with a host, or one with a query or fragment.
+    """
+    parts = urlsplit(url)
+    if parts.scheme not in ("http", "https") or not parts.hostname or parts.query or parts.fragment:
+        raise ValueError(f"the public address must look like https://study.example.org[/path], got {url!r}")
+    return url.rstrip("/")
+
+
+def create_app(
+    study: Study,
+    store: Store,
+    renderer: Renderer,
+    *,
+    public_url: str = "http://127.0.0.1:8000",
+    live_lease: float = 120.0,
+) -> FastAPI:
+    """The app for one study and its store (the store must be bound to the study).
+
+    ``public_url`` is the server's address as participants reach it: the dashboard's
+    links are built from it, never from a request's ``Host`` header.
+    """
+    public = public_base(public_url)
     pkg = resources.files("mindgap.study")
     templates = Jinja2Templates(directory=str(pkg / "templates"))
     templates.env.filters["paragraphs"] = paragraphs
@@ -147,7 +217,17 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             return items[item_id]
         raise HTTPError(404, "Unknown item", f"There is no item {item_id!r} in your study.")
 
-    def show(request: Request, p, status: int = 200, error: str = "") -> Response:
+    def refusal(code: str) -> str:
+        """What a refused answer's page says (``code`` comes back in the page's address)."""
+        return {
+            "missing": f"Please move the slider to give your rating (from {lo:g} to {hi:g}).",
+            "rating": f"The rating must be a number from {lo:g} to {hi:g} in steps of {step:g}.",
+            "choice": "Please choose A, B or can't tell.",
+            "too-fast": f"Please take at least {study.min_seconds:g} seconds to look at each item.",
+        }[code]
+
+    def show(request: Request, p, status: int = 200, error: str = "", kept: dict | None = None) -> Response:
+        """The participant's current page; ``kept`` is a refused answer to show again (code, item, value)."""
         s = stage(p)
         token = p["token"]
         ctx = dict(token=token, csrf=csrf("p:" + token), error=error)
@@ -165,6 +245,12 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
         shown = store.first_view(p["id"], item_id)
         wait = max(0.0, study.min_seconds - (time.time() - shown))
         order = json.loads(p["item_order"])
+        rating = chosen = None
+        if kept and kept["item"] == item_id:  # the refused answer to this very item: its message and value
+            ctx["error"] = refusal(kept["code"])
+            value = parse_rating(kept.get("rating") or "", lo, hi, step)
+            rating = None if value is None else f"{value:g}"
+            chosen = kept.get("choice") if kept.get("choice") in CHOICES else None
         ctx.update(
             item=item,
             number=(order.index(item_id) + 1) if item_id in order else len(store.answered_ids(p["id"])) + 1,
@@ -172,9 +258,10 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             submission=secrets.token_urlsafe(12),
             wait=round(wait, 1),
             scale=(lo, hi, step),
-            start=(lo + hi) / 2,
+            rating=rating,
+            chosen=chosen,
             choices=CHOICES,
-            parts=("demo",) if item["kind"] == "demo" else ("a", "b"),
+            parts=renderer.parts(item),
         )
         return page(request, "item.html", status, **ctx)
 
@@ -184,11 +271,16 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
 
     @app.get("/p/{token}", response_class=HTMLResponse)
     def participant_page(request: Request, token: str):
-        return show(request, who(token))
+        q = request.query_params
+        kept = None
+        if q.get("refused") in ("missing", "rating", "choice", "too-fast"):
+            kept = {"code": q["refused"], "item": q.get("item"), "rating": q.get("rating"), "choice": q.get("choice")}
+        return show(request, who(token), kept=kept)
 
     async def form_of(request: Request, token: str):
-        form = await request.form()
+        """The participant (404 for an unknown link, before the body is read) and their checked form."""
         p = await run_in_threadpool(who, token)
+        form = await read_form(request)
         check_csrf(form, token)
         return form, p
 
@@ -196,6 +288,13 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
         r = RedirectResponse(f"/p/{token}", status_code=303)
         if outcome:
             r.headers["X-Answer"] = outcome
+        return r
+
+    def refuse(token: str, item_id: str, code: str, **value: str) -> Response:
+        """Post/redirect/get for a refused answer: back to the item, whose page says why and keeps the value."""
+        query = urlencode({"item": item_id, "refused": code, **{k: v for k, v in value.items() if v}})
+        r = RedirectResponse(f"/p/{token}?{query}", status_code=303)
+        r.headers["X-Answer"] = "refused"
         return r
 
     @app.post("/p/{token}/consent")
@@ -256,32 +355,28 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
         item_id = str(form.get("item_id", ""))
         item = item_of(p, item_id)
         if item["kind"] == "demo":
-            try:
-                value = float(str(form.get("rating")))
-            except ValueError:
-                value = float("nan")
-            if not lo <= value <= hi:
-                return show(request, p, 422, f"The rating must be a number from {lo:g} to {hi:g}.")
+            raw = form.get("rating", "")
+            if raw == "":  # the slider was never moved: an untouched midpoint is no answer
+                return refuse(token, item_id, "missing")
+            value = parse_rating(raw, lo, hi, step)
+            if value is None:
+                return refuse(token, item_id, "rating")
             choice = None
         else:
-            choice = str(form.get("choice", ""))
+            choice = form.get("choice", "")
             if choice not in CHOICES:
-                return show(request, p, 422, "Please choose A, B or can't tell.")
+                return refuse(token, item_id, "choice")
             value = {"a": 1.0, "b": 0.0, "equal": 0.5}[choice]
-        answered = store.answered_ids(p["id"])
-        if item_id not in answered and not item_id.startswith(LIVE_PREFIX):
-            current = current_item(p)
-            if item_id != current:
-                raise HTTPError(409, "Out of order", "Please answer the items in the order they are shown.")
-        if item_id not in answered:
-            shown = store.shown_at(p["id"], item_id)
-            if shown is None:
-                raise HTTPError(409, "Not shown", "This item has not been shown to you yet.")
-            if time.time() - shown < study.min_seconds:
-                return show(
-                    request, p, 422, f"Please take at least {study.min_seconds:g} seconds to look at each item."
-                )
-        outcome = store.record_answer(p["id"], item_id, value, choice, submission)
+        order = None if item_id.startswith(LIVE_PREFIX) else json.loads(p["item_order"])
+        outcome = store.record_answer(
+            p["id"], item_id, value, choice, submission, order=order, min_seconds=study.min_seconds
+        )
+        if outcome == "out-of-order":
+            raise HTTPError(409, "Out of order", "Please answer the items in the order they are shown.")
+        if outcome == "not-shown":
+            raise HTTPError(409, "Not shown", "This item has not been shown to you yet.")
+        if outcome == "too-fast":
+            return refuse(token, item_id, "too-fast", rating=form.get("rating", ""), choice=choice or "")
         if outcome == "conflict":
             raise HTTPError(409, "Bad form", "This form was already used for another answer. Please reload the page.")
         if outcome == "closed":
@@ -305,7 +400,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
     def media(token: str, item_id: str, part: str):
         p = who(token)
         item = item_of(p, item_id)
-        if part not in (("demo",) if item["kind"] == "demo" else ("a", "b")):
+        if part not in dict(renderer.parts(item)):
             raise HTTPError(404, "Unknown picture", f"Item {item_id!r} has no picture {part!r}.")
         path = renderer.path(item, part, p["condition"])
         return FileResponse(path, headers={"Cache-Control": "private, max-age=3600"})
@@ -329,9 +424,9 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             r = RedirectResponse("/admin", status_code=303)
             r.set_cookie(COOKIE, admin_token, httponly=True, samesite="strict")
             return r
-        return page(request, "admin.html", **dashboard_data(request))
+        return page(request, "admin.html", **dashboard_data())
 
-    def dashboard_data(request: Request) -> dict:
+    def dashboard_data() -> dict:
         answers = store.answers()
         failed = export.sanity_failures(items, answers)
         by_person: dict[str, list] = {}
@@ -339,7 +434,6 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
         for a in answers:
             by_person.setdefault(a["participant"], []).append(a)
             by_item.setdefault(a["item_id"], []).append(a)
-        base = str(request.base_url).rstrip("/")
         people = []
         for p in store.participants():
             mine = by_person.get(p["label"], [])
@@ -347,7 +441,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
             people.append(
                 dict(
                     label=p["label"],
-                    link=f"{base}/p/{p['token']}",
+                    link=f"{public}/p/{p['token']}",
                     condition=p["condition"],
                     stage=stage(p),
                     answered=len(mine),
@@ -393,7 +487,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
     @app.get("/admin/api/status")
     def status(request: Request):
         require_admin(request)
-        d = dashboard_data(request)
+        d = dashboard_data()
         return JSONResponse({k: d[k] for k in ("people", "items", "n_answers", "n_done", "n_failed", "live")})
 
     @app.get("/admin/export/{name}")
@@ -417,7 +511,7 @@ def create_app(study: Study, store: Store, renderer: Renderer, *, live_lease: fl
     @app.post("/admin/participants")
     async def add_participants(request: Request):
         require_admin(request)
-        form = await request.form()
+        form = await read_form(request)
         if not hmac.compare_digest(str(form.get("csrf", "")), csrf("admin")):
             raise HTTPError(403, "Form expired", "This form was not sent from the dashboard. Please reload it.")
         try:

@@ -1,7 +1,9 @@
 """Pictures of study items, drawn by mindgap's own plotting and cached on disk.
 
-* coffee demonstrations: :func:`mindgap.plotting.coffee.save_demo_strip` (Fig. 11), in the
-  participant's robot condition;
+* coffee demonstrations: Fig. 11's strip as one picture per step (the states drawn by
+  :func:`mindgap.plotting.coffee.draw_state`, in the participant's robot condition), with
+  the captions ("1. GetUmbrella", "spilled!") as text on the page, so that they stay
+  readable on a phone, where the steps wrap into rows;
 * grid7 demonstrations: the grid with the demonstrated path (drawn here: the grid
   heatmaps of :mod:`mindgap.plotting.heatmaps` show values, not paths);
 * terrain segments: the map of :mod:`mindgap.plotting.terrain` with the segment's path
@@ -9,11 +11,17 @@
   question can be judged), or an animated GIF (``animation: true`` in ``items``).
 
 Matplotlib is not thread-safe, so drawing holds one lock; each picture is drawn once
-and written through a rename, then served from the cache folder.
+and written through a rename, then served from the cache folder. A cached file is named
+by a hash of everything that decides the picture (the domain, the item's data, the part,
+the condition and the format), so a store started again under an old name with other
+items never shows the old pictures.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import re
 import threading
 from pathlib import Path
 
@@ -23,13 +31,19 @@ _LOCK = threading.Lock()
 PART_COLOURS = {"a": "#d62728", "b": "#1f77b4"}
 
 
+# Bumped when a drawing changes, so that pictures cached by an older mindgap are drawn again.
+DRAWING_VERSION = 2
+_STEP = re.compile(r"step-([0-9]{1,4})")
+
+
 class Renderer:
-    """Draws items of one study into ``cache`` (``<cache>/<condition>/<item>-<part>.<ext>``)."""
+    """Draws items of one study into ``cache`` (``<cache>/<condition>/<item>-<part>-<key>.<ext>``)."""
 
     def __init__(self, study, cache: Path):
         self.study = study
         self.cache = Path(cache)
         self._world = None
+        self._world_digest: str | None = None
 
     @property
     def world(self):
@@ -39,12 +53,41 @@ class Renderer:
             self._world = load_study_world(self.study)
         return self._world
 
+    def _world_file(self) -> str:
+        """A hash of a terrain world given as a file (its content, not only its name, decides the map)."""
+        if self._world_digest is None:
+            self._world_digest = ""
+            name = self.study.domain.get("world")
+            if isinstance(name, str):
+                path = Path(name) if Path(name).is_absolute() else Path(self.study.base_dir) / name
+                if path.is_file():
+                    self._world_digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        return self._world_digest
+
     def ext(self) -> str:
         return "gif" if self.study.items.get("animation") else "png"
 
+    def parts(self, item: dict) -> tuple[tuple[str, str], ...]:
+        """An item's pictures as ``(part, caption)``: a coffee demonstration's steps
+        (``step-0``, ``step-1``, ...), a grid demonstration's one picture (``demo``), or a
+        comparison's two behaviours (``a``, ``b``)."""
+        if item["kind"] != "demo":
+            return (("a", "A"), ("b", "B"))
+        if self.study.domain["name"] == "coffee":
+            d = item["data"]
+            return tuple((f"step-{k}", c) for k, c in enumerate(step_captions(d["states"], d["actions"])))
+        return (("demo", ""),)
+
+    def key(self, item: dict, part: str, condition: str, ext: str) -> str:
+        """A hash of what decides the picture: the domain, the item's data, the part, the condition, the format."""
+        what = [DRAWING_VERSION, self.study.domain, self._world_file(), item["data"], part, condition, ext]
+        return hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
     def path(self, item: dict, part: str, condition: str) -> Path:
-        """The picture of ``part`` (``demo``, ``a`` or ``b``) of ``item``, drawn on first use."""
-        out = self.cache / (condition or "all") / f"{item['id']}-{part}.{self.ext() if part != 'demo' else 'png'}"
+        """The picture of ``part`` (one of :meth:`parts`) of ``item``, drawn on first use."""
+        ext = self.ext() if item["kind"] != "demo" else "png"
+        key = self.key(item, part, condition, ext)
+        out = self.cache / (condition or "all") / f"{item['id']}-{part}-{key}.{ext}"
         if out.exists():
             return out
         with _LOCK:
@@ -58,9 +101,11 @@ class Renderer:
         tmp = out.with_name(out.stem + ".part" + out.suffix)
         d = item["data"]
         if domain == "coffee":
-            from ..plotting.coffee import save_demo_strip
-
-            save_demo_strip(tmp, d["states"], d["actions"], condition or "mobile", "What the robot did")
+            k = int(_STEP.fullmatch(part).group(1))
+            spilled = k > 0 and step_captions(d["states"][k - 1 : k + 1], d["actions"][k - 1 : k])[1].endswith(
+                "spilled!"
+            )
+            save_coffee_step(tmp, d["states"][k], condition or "mobile", spilled)
         elif domain == "grid7":
             save_grid_demo(tmp, d["states"], d["size"])
         else:
@@ -72,6 +117,45 @@ class Renderer:
             else:
                 save_segment(tmp, self.world.params, seg, PART_COLOURS[part], part.upper())
         tmp.replace(out)
+
+
+def step_captions(states, actions) -> list[str]:
+    """The caption of each step of a coffee demonstration: ``start``, then the action taken
+    and what went wrong on the way (the captions of Fig. 11's strip)."""
+    from ..envs.coffee import ACTIONS, GO, ROBOT_COFFEE, WET, bits
+
+    captions = ["start"]
+    for k in range(1, len(states)):
+        caption = f"{k}. {ACTIONS[actions[k - 1]]}"
+        if actions[k - 1] == GO:
+            before, after = bits(int(states[k - 1])), bits(int(states[k]))
+            if before[ROBOT_COFFEE] and not after[ROBOT_COFFEE]:
+                caption += ", spilled!"
+            elif after[WET]:
+                caption += ", got wet"
+        captions.append(caption)
+    return captions
+
+
+def save_coffee_step(path: Path, state: int, robot: str, spilled: bool = False) -> None:
+    """One step of a coffee demonstration (its caption is on the page), a spill as a puddle."""
+    import matplotlib.pyplot as plt
+    from matplotlib import patches
+
+    from ..envs.coffee import IN_CAFE, bits
+    from ..plotting.coffee import draw_state
+
+    fig = plt.figure(figsize=(1.1, 1.1))
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.set_xlim(-0.01, 1.01)
+    ax.set_ylim(-0.01, 1.01)
+    ax.set_axis_off()
+    draw_state(ax, int(state), robot)
+    if spilled:
+        x = 0.8 if bits(int(state))[IN_CAFE] else 0.2
+        ax.add_patch(patches.Ellipse((x, 0.25), 0.2, 0.04, fc="#7a4a21"))
+    fig.savefig(path, dpi=220, format="png")
+    plt.close(fig)
 
 
 def segment_positions(params, seg: dict) -> np.ndarray:

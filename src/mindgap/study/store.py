@@ -296,14 +296,35 @@ class Store:
     def answered_ids(self, pid: int) -> set[str]:
         return {r[0] for r in self.conn().execute("SELECT item_id FROM answers WHERE participant_id = ?", (pid,))}
 
-    def record_answer(self, pid: int, item_id: str, value: float, choice: str | None, submission_id: str) -> str:
-        """Store one answer exactly once.
+    def record_answer(
+        self,
+        pid: int,
+        item_id: str,
+        value: float,
+        choice: str | None,
+        submission_id: str,
+        *,
+        order: list[str] | None = None,
+        min_seconds: float | None = None,
+    ) -> str:
+        """Store one answer exactly once; every check runs inside the write transaction.
+
+        A resubmission of a stored answer is recognised before anything else, so copies of
+        one form sent at once all get the first one's outcome, whichever commits first.
+
+        Args:
+            order: the participant's item order; an answer to any item but the first
+                unanswered one is refused (``out-of-order``). None for a live query.
+            min_seconds: the least time between the item's first view and its answer; with
+                it, an item never shown is refused (``not-shown``). None: no view needed.
 
         Returns:
             ``stored`` (new), ``duplicate`` (this submission was stored before), ``answered``
             (the item already has an earlier answer, which stands) or ``conflict`` (the
-            submission id was used for another item or participant). For a live query also
-            ``closed`` (the run stopped waiting) or ``not-yours`` (claimed by someone else).
+            submission id was used for another item or participant); refused without a
+            write: ``out-of-order``, ``not-shown`` (never shown to this participant) or
+            ``too-fast``. For a live query also ``closed`` (the run stopped waiting) or
+            ``not-yours`` (claimed by someone else).
         """
         now = time.time()
         with self.write() as c:
@@ -312,8 +333,11 @@ class Store:
             ).fetchone()
             if row is not None:
                 return "duplicate" if (row[0], row[1]) == (pid, item_id) else "conflict"
-            if c.execute("SELECT 1 FROM answers WHERE participant_id = ? AND item_id = ?", (pid, item_id)).fetchone():
+            answered = {r[0] for r in c.execute("SELECT item_id FROM answers WHERE participant_id = ?", (pid,))}
+            if item_id in answered:
                 return "answered"
+            if order is not None and item_id != next((i for i in order if i not in answered), None):
+                return "out-of-order"
             if item_id.startswith(LIVE_PREFIX):
                 q = c.execute(
                     "SELECT status, claimed_by FROM live_queries WHERE id = ?", (int(item_id[len(LIVE_PREFIX) :]),)
@@ -322,17 +346,22 @@ class Store:
                     return "not-yours"
                 if q["status"] != "open":
                     return "closed" if q["status"] == "expired" else "answered"
-                c.execute(
-                    "UPDATE live_queries SET status = 'answered' WHERE id = ?", (int(item_id[len(LIVE_PREFIX) :]),)
-                )
             shown = c.execute(
                 "SELECT first_shown FROM views WHERE participant_id = ? AND item_id = ?", (pid, item_id)
             ).fetchone()
-            seconds = None if shown is None else now - shown[0]
+            if min_seconds is not None:
+                if shown is None:
+                    return "not-shown"
+                if now - shown[0] < min_seconds:
+                    return "too-fast"
+            if item_id.startswith(LIVE_PREFIX):
+                c.execute(
+                    "UPDATE live_queries SET status = 'answered' WHERE id = ?", (int(item_id[len(LIVE_PREFIX) :]),)
+                )
             c.execute(
                 "INSERT INTO answers (participant_id, item_id, value, choice, seconds, submission_id, created_at)"
                 " VALUES (?, ?, ?, ?, ?, ?, ?)",
-                (pid, item_id, float(value), choice, seconds, submission_id, now),
+                (pid, item_id, float(value), choice, None if shown is None else now - shown[0], submission_id, now),
             )
         return "stored"
 
