@@ -41,6 +41,19 @@ def test_reproduce_table1_fast_writes_its_files(tmp_path, capsys):
     assert capsys.readouterr().out.split("results,")[0] == printed.split("results,")[0]
     assert main(["reproduce", "table1", "--fast", "--quiet", "--assemble", "--out", str(out)]) == 0
     assert capsys.readouterr().out.split("results,")[0] == printed.split("results,")[0]
+    # one job again, by the command its record keeps, into another folder: the same row
+    key = "main/rotated/s0/n300/maxent-irl/-"
+    record = json.loads((out / "jobs" / (key.replace("/", "__") + ".json")).read_text())
+    assert record["command"] == f"mindgap reproduce table1 --fast --out {out} --job {key}"
+    again = tmp_path / "again"
+    assert main(["reproduce", "table1", "--fast", "--quiet", "--job", key, "--out", str(again)]) == 0
+    assert f"record in {again}/jobs/" in capsys.readouterr().out
+    assert [p.name for p in (again / "jobs").iterdir()] == [key.replace("/", "__") + ".json"]
+    rerun = json.loads((again / "jobs" / (key.replace("/", "__") + ".json")).read_text())
+    timeless = [{k: v for k, v in r["row"].items() if k != "seconds"} for r in (rerun, record)]
+    assert timeless[0] == timeless[1] and rerun["curve"] == record["curve"]
+    progress = json.loads((again / "progress.json").read_text())
+    assert progress["done"] == 1 and progress["jobs"] == len(list((out / "jobs").iterdir()))
 
 
 def test_reproduce_refuses_a_folder_of_another_configuration(tmp_path, capsys):

@@ -50,6 +50,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bars")
     r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
     r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
+    r.add_argument(
+        "--job", metavar="KEY", help="run only this job (a record's `command` names it) and print its record"
+    )
 
     from .commands import design, eps, learn, prefbias, report, study, worlds
 
@@ -157,6 +160,8 @@ def _reproduce(args) -> int:
 
     if args.assemble and (args.fresh or args.shard):
         raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
+    if args.job and (args.assemble or args.shard):
+        raise ValueError("--job runs one job; it does not combine with --assemble or --shard")
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
@@ -177,7 +182,14 @@ def _reproduce(args) -> int:
         cfg = replace(cfg, seeds=args.seeds, demo_count_seeds=min(cfg.demo_count_seeds, args.seeds))
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     shard = _shard(args.shard)
-    summary = table1.run(cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble)
+    summary = table1.run(
+        cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble, only=args.job
+    )
+    if args.job:
+        from .experiments._runfolder import job_summary
+
+        print(job_summary(summary["job"], out, args.job))
+        return 0
     if summary is None:
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
         return 0

@@ -256,3 +256,14 @@ def test_eps_and_lambda_fast_for_real(tmp_path, capsys):
     assert main(["reproduce", "lambda", "--fast", "--quiet", "--worlds", "d1", "--out", str(tmp_path / "l")]) == 0
     assert len(rows(tmp_path / "l" / "results.csv")) == 3
     capsys.readouterr()
+
+
+def test_policy_shaping_as_one_job_brings_the_jobs_whose_policies_it_shapes():
+    from mindgap.experiments import eps_table
+    from mindgap.experiments.prefbias_common import select_job
+
+    jobs = eps_table.jobs(eps_table.preset("fast"))
+    assert [j.key for j in select_job(jobs, "d3/shaping")] == ["d3/sac", "d3/drlhp", "d3/shaping"]
+    assert [j.key for j in select_job(jobs, "d3/sac")] == ["d3/sac"]
+    with pytest.raises(ValueError, match="has no job 'd9/sac'"):
+        select_job(jobs, "d9/sac")

@@ -411,3 +411,23 @@ def test_priors_fast_for_real(tmp_path, capsys):
 def test_sampling_fast_for_real(tmp_path, capsys):
     results = _real("sampling", tmp_path, capsys)
     assert len([r for r in results if r["method"] == "prefbias"]) == 4
+
+
+def test_one_job_runs_again_from_the_command_its_record_keeps(stand_ins, tmp_path, capsys):
+    out = tmp_path / "nav"
+    _run_twice("nav", out, stand_ins, capsys, n_jobs=8, extra=V1)
+    key = "nav1-v1/prefbias-q30"
+    record = json.loads((out / "jobs" / key.replace("/", "__")).with_suffix(".json").read_text())
+    assert record["command"] == f"mindgap reproduce nav --fast --worlds nav1-v1,nav2-v1 --out {out} --job {key}"
+    stand_ins.clear()
+    again = tmp_path / "again"
+    assert main(["reproduce", "nav", "--fast", "--quiet", *V1, "--job", key, "--out", str(again)]) == 0
+    assert stand_ins == [("prefbias", "nav1-v1", 30)]  # that job only
+    assert f"record in {again}/jobs/nav1-v1__prefbias-q30.json" in capsys.readouterr().out
+    rerun = json.loads((again / "jobs" / "nav1-v1__prefbias-q30.json").read_text())
+    same = ("final", "curve", "routes", "belief_stay", "reward_error")
+    assert {k: rerun.get(k) for k in same} == {k: record.get(k) for k in same}
+    assert not (again / "summary.json").exists()  # one job writes no tables
+    assert main(["reproduce", "nav", "--fast", *V1, "--job", "nav1-v1/nope", "--out", str(again)]) == 2
+    assert "has no job 'nav1-v1/nope'" in capsys.readouterr().err
+    assert main(["reproduce", "nav", "--fast", *V1, "--job", key, "--assemble", "--out", str(again)]) == 2

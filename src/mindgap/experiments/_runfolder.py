@@ -137,3 +137,12 @@ class RunFolder:
         }
         atomic_write(self.root / "progress.json", json.dumps(record, indent=2))
         return record
+
+
+def job_summary(record: dict, root: Path, key: str) -> str:
+    """What ``mindgap reproduce … --job KEY`` prints: the record's numbers (a Table 1 fit's
+    metrics included) and where the record is."""
+    flat = {**record, **record.get("row", {})}
+    shown = {k: v for k, v in flat.items() if isinstance(v, (int, float, str)) and k != "command"}
+    path = Path(root) / "jobs" / (key.replace("/", "__") + ".json")
+    return json.dumps(shown, indent=1) + f"\nrecord in {path}"

@@ -208,13 +208,26 @@ def _jobs(cfg: CoffeeConfig, responses):
                     yield pop.robot, r, method, param
 
 
+def _key(robot, resp, method, param) -> str:
+    return f"{robot}/{resp.participant.pid}/{method}/{param}"
+
+
 def run(
-    cfg: CoffeeConfig, out: Path, *, fresh: bool = False, progress: bool = True, shard=None, assemble_only: bool = False
+    cfg: CoffeeConfig,
+    out: Path,
+    *,
+    fresh: bool = False,
+    progress: bool = True,
+    shard=None,
+    assemble_only: bool = False,
+    only: str | None = None,
 ) -> dict | None:
     """Run (or resume) the study in ``out``; write CSV/JSON/PNG; return the summary.
 
     ``shard=(i, n)`` fits only every ``n``-th participant starting at ``i`` (processes
-    sharing ``out``); a final call without it assembles the outputs.
+    sharing ``out``); a final call without it assembles the outputs. ``only`` fits the one
+    job of that key (its record's ``command`` names it), writes no outputs and returns
+    ``{"job": its record}``.
     """
     if cfg.participants < 2:
         raise ValueError("participants must be at least 2 per robot type (the two-sample test needs them)")
@@ -228,6 +241,12 @@ def run(
     study = make_study(cfg.sanity_seed)
     responses = recruit_all(cfg, study)
     jobs = list(_jobs(cfg, responses))
+    everything = [_key(*job) for job in jobs]
+    if only is not None:
+        if only not in everything:
+            raise ValueError(f"coffee has no job {only!r}: its jobs are named like {everything[0]}")
+        jobs = [job for job in jobs if _key(*job) == only]
+    rerun = registry.command("coffee", cfg, out)
     if shard is not None:
         i, n_shards = shard
         people = sorted({j[1].participant.pid for j in jobs})
@@ -237,7 +256,7 @@ def run(
     records = []
     for robot, resp, method, param in tqdm(jobs, desc="coffee", disable=not progress or assemble_only):
         person = resp.participant
-        key = f"{robot}/{person.pid}/{method}/{param}"
+        key = _key(robot, resp, method, param)
         rec = folder.done(key)
         if rec is None and assemble_only:
             continue
@@ -254,12 +273,14 @@ def run(
                 progress=progress,
             )
             rec = {"participant": person.pid, "robot": robot, "method": method, "belief_param": param, **fitted}
+            rec["command"] = f"{rerun} --job {key}"
             folder.save(key, rec)
         records.append(rec)
     if shard is not None:
         return None
-    keys = [f"{robot}/{resp.participant.pid}/{method}/{param}" for robot, resp, method, param in jobs]
-    folder.write_progress("coffee", keys, registry.command("coffee", cfg, out))
+    folder.write_progress("coffee", everything, rerun)
+    if only is not None:
+        return {"job": records[0]}
     if not records:
         raise RuntimeError(f"{out} has no finished fits to assemble")
     rows = result_rows(cfg, responses, records)

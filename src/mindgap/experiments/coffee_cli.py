@@ -24,7 +24,7 @@ from ..feedback.demos import RatedDemonstrations
 from ..feedback.ratings_file import ParticipantRatings, read_participant_ratings, write_participant_ratings
 from ..teachers.participants import POPULATIONS, QUESTIONS, recruit
 from . import coffee
-from ._runfolder import write_csv
+from ._runfolder import job_summary, write_csv
 
 
 def reproduce(args, shard) -> int:
@@ -35,7 +35,13 @@ def reproduce(args, shard) -> int:
     if args.participants is not None:
         cfg = replace(cfg, participants=args.participants)
     out = args.out or Path("runs") / ("coffee" + ("-fast" if args.fast else ""))
-    summary = coffee.run(cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble)
+    only = getattr(args, "job", None)
+    summary = coffee.run(
+        cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble, only=only
+    )
+    if only:
+        print(job_summary(summary["job"], out, only))
+        return 0
     if summary is None:
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
         return 0

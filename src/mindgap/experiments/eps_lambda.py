@@ -64,10 +64,18 @@ def jobs(cfg: LambdaConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: LambdaConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
+def run(cfg: LambdaConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return ec.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="lambda"
+        cfg,
+        out,
+        jobs(cfg),
+        write_outputs,
+        fresh=fresh,
+        progress=progress,
+        assemble_only=assemble_only,
+        name="lambda",
+        only=only,
     )
 
 

@@ -87,10 +87,18 @@ def jobs(cfg: EPSTableConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: EPSTableConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
+def run(cfg: EPSTableConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return ec.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="eps"
+        cfg,
+        out,
+        jobs(cfg),
+        write_outputs,
+        fresh=fresh,
+        progress=progress,
+        assemble_only=assemble_only,
+        name="eps",
+        only=only,
     )
 
 

@@ -189,11 +189,13 @@ def run_jobs(
     progress: bool,
     assemble_only: bool,
     compute=compute_job,
+    rerun: str = "",
 ) -> dict[str, dict]:
     """Each job's record, computing (or resuming) the unfinished ones unless ``assemble_only``.
 
     ``compute(folder, job, seeds, fresh=, progress=) → dict`` makes a job's record (jobs run
-    in order, so a job may read the records of those before it).
+    in order, so a job may read the records of those before it). ``rerun`` is the command
+    line of the run; a new record keeps ``rerun --job KEY``, the line that computes it again.
     """
     records = {}
     for i, job in enumerate(jobs):
@@ -203,6 +205,8 @@ def run_jobs(
             rec = compute(folder, job, seeds, fresh=fresh, progress=progress)
             rec.update(key=job.key, world=job.world, method=job.method, label=job.label, tags=job.tags)
             rec["seconds"] = time.perf_counter() - t0
+            if rerun:
+                rec["command"] = f"{rerun} --job {job.key}"
             folder.save(job.key, rec)
             if progress:
                 what = f"final return {_pm(rec['final'])}" if "final" in rec else rec.get("done", "done")
@@ -210,6 +214,21 @@ def run_jobs(
         if rec is not None:
             records[job.key] = rec
     return records
+
+
+def select_job(jobs: list[Job], key: str, name: str = "this experiment") -> list[Job]:
+    """The job named ``key`` and, before it, the jobs whose records it reads (Policy Shaping's sources).
+
+    Raises:
+        ValueError: no job of that name (the message lists some that exist).
+    """
+    by_key = {job.key: job for job in jobs}
+    if key not in by_key:
+        some = ", ".join(list(by_key)[:6])
+        raise ValueError(f"{name} has no job {key!r}: its jobs are named like {some}, …")
+    job = by_key[key]
+    needs = tuple(job.cfg) if job.method == "shaping" else ()
+    return [by_key[k] for k in needs] + [job]
 
 
 def _reference(world, cfg: ReferenceConfig) -> dict:
@@ -335,23 +354,38 @@ def run_experiment(
     compute=compute_job,
     references=("reference",),
     name: str = "this experiment",
+    only: str | None = None,
 ):
     """Run (or resume) ``jobs`` in the run folder ``out``, then ``write_outputs(cfg, out, records)``.
 
     ``assemble_only`` writes the outputs from the finished jobs and runs nothing; ``compute``
     makes a job's record (:func:`run_jobs`); ``references`` are the methods that learn nothing;
     ``name`` is how a refused world is told (every world is checked before anything is written).
-    Returns the summary, with ``missing_jobs``: how many jobs have no record yet.
+    ``only`` runs one job (and those whose records it reads) and writes no outputs.
+    Returns the summary, with ``missing_jobs``: how many jobs have no record yet; with
+    ``only``, ``{"job": its record}``.
     """
     out = Path(out)
+    everything = [job.key for job in jobs]
+    if only is not None:
+        jobs = select_job(jobs, only, name)
     for spec in dict.fromkeys(job.world for job in jobs):
         experiment_world(spec, name)
     folder = RunFolder(out, cfg, fresh=fresh)
-    records = run_jobs(
-        folder, jobs, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only, compute=compute
-    )
     rerun = registry.command(name, cfg, out) if name in registry.NAMES else ""
-    folder.write_progress(name, [job.key for job in jobs], rerun)
+    records = run_jobs(
+        folder,
+        jobs,
+        cfg.seeds,
+        fresh=fresh,
+        progress=progress,
+        assemble_only=assemble_only,
+        compute=compute,
+        rerun=rerun,
+    )
+    folder.write_progress(name, everything, rerun)
+    if only is not None:
+        return {"job": records[only]}
     if not any(r["method"] not in references for r in records.values()):
         raise RuntimeError(f"{out} has no finished learner jobs to assemble")
     summary = write_outputs(cfg, out, records)

@@ -79,10 +79,18 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: NavConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
+def run(cfg: NavConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return pc.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="nav"
+        cfg,
+        out,
+        jobs(cfg),
+        write_outputs,
+        fresh=fresh,
+        progress=progress,
+        assemble_only=assemble_only,
+        name="nav",
+        only=only,
     )
 
 

@@ -72,10 +72,18 @@ def jobs(cfg: PriorsConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: PriorsConfig, out: Path, *, fresh=False, progress=True, assemble_only=False) -> dict:
+def run(cfg: PriorsConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
     return pc.run_experiment(
-        cfg, out, jobs(cfg), write_outputs, fresh=fresh, progress=progress, assemble_only=assemble_only, name="priors"
+        cfg,
+        out,
+        jobs(cfg),
+        write_outputs,
+        fresh=fresh,
+        progress=progress,
+        assemble_only=assemble_only,
+        name="priors",
+        only=only,
     )
 
 

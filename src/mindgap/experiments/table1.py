@@ -180,18 +180,35 @@ def _jobs(cfg: Table1Config):
 
 
 def run(
-    cfg: Table1Config, out: Path, *, fresh: bool = False, progress: bool = True, shard=None, assemble_only: bool = False
+    cfg: Table1Config,
+    out: Path,
+    *,
+    fresh: bool = False,
+    progress: bool = True,
+    shard=None,
+    assemble_only: bool = False,
+    only: str | None = None,
 ) -> dict | None:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
 
     ``shard=(i, n)`` runs only the ``i``-th of ``n`` interleaved slices of the
     (setting, seed) groups, so ``n`` processes can share one run folder; a final call
     without ``shard`` assembles the outputs (and runs whatever is still missing).
-    ``assemble_only`` writes the outputs from the finished jobs and runs nothing.
+    ``assemble_only`` writes the outputs from the finished jobs and runs nothing. ``only``
+    runs the one job of that key (its record's ``command`` names it), writes no outputs and
+    returns ``{"job": its record}``.
     """
     out = Path(out)
-    folder = RunFolder(out, cfg, fresh=fresh and shard is None)
     jobs = list(_jobs(cfg))
+    everything = [_key(*job) for job in jobs]
+    if only is not None:
+        if only not in everything:
+            raise ValueError(f"table1 has no job {only!r}: its jobs are named like {everything[0]}")
+        if _same_data(cfg, only):
+            raise ValueError(f"{only} reads the record of {_main_of(only)}: run that job")
+        jobs = [job for job in jobs if _key(*job) == only]
+    folder = RunFolder(out, cfg, fresh=fresh and shard is None)
+    rerun = registry.command("table1", cfg, out)
     if shard is not None:
         i, n_shards = shard
         groups = sorted({(j[0], j[1], j[2]) for j in jobs})
@@ -234,14 +251,16 @@ def run(
                 "row": row,
                 "curve": curve,
                 "restarts": restarts,
+                "command": f"{rerun} --job {key}",
             }
             folder.save(key, rec)
         records.append(rec)
     if shard is not None:
         return None
-    keys = [_key(*job) for job in jobs]
-    expected = [k for k in keys if not (_same_data(cfg, k) and folder.done(k) is None)]
-    folder.write_progress("table1", expected, registry.command("table1", cfg, out))
+    expected = [k for k in everything if not (_same_data(cfg, k) and folder.done(k) is None)]
+    folder.write_progress("table1", expected, rerun)
+    if only is not None:
+        return {"job": records[0]}
     if not records:
         raise RuntimeError(f"{out} has no finished jobs to assemble")
     summary = write_outputs(cfg, out, records)

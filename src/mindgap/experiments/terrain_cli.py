@@ -54,9 +54,15 @@ def reproduce(args) -> int:
             raise ValueError("--env needs a world")
         cfg = replace(cfg, worlds=worlds)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
+    only = getattr(args, "job", None)
     summary = module.run(
-        cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False)
+        cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False), only=only
     )
+    if only:
+        from ._runfolder import job_summary
+
+        print(job_summary(summary["job"], out, only))
+        return 0
     print(summary["table_md"])
     for c in summary.get("claims", []):
         print(f"[{'ok' if c['held'] else 'not met'}] {c['text']}: {c['measured']}")

@@ -61,6 +61,22 @@ def draw_state(ax, state: int, robot: str, caption: str = "", x0: float = 0.0) -
         ax.text(x0 + 0.5, 1.04, caption, ha="center", va="bottom", fontsize=7)
 
 
+def step_events(states, actions) -> list[str]:
+    """What went wrong on each step of a coffee demonstration: ``spilled!``, ``got wet`` or ``""``
+    (the first state's is ``""``); Fig. 11's captions add it to the action taken."""
+    events = [""]
+    for k in range(1, len(states)):
+        event = ""
+        if actions[k - 1] == GO:
+            before, after = bits(int(states[k - 1])), bits(int(states[k]))
+            if before[ROBOT_COFFEE] and not after[ROBOT_COFFEE]:
+                event = "spilled!"
+            elif after[WET]:
+                event = "got wet"
+        events.append(event)
+    return events
+
+
 def save_demo_strip(path: Path, states, actions, robot: str, title: str = "") -> None:
     """A demonstration as a strip of pictures, one per state, captioned with the action taken (Fig. 11)."""
     n = len(states)
@@ -70,16 +86,13 @@ def save_demo_strip(path: Path, states, actions, robot: str, title: str = "") ->
     ax.set_xlim(-0.02, n * (1 + gap) - gap + 0.02)
     ax.set_ylim(0, 1)
     ax.set_axis_off()
-    for k, s in enumerate(states):
+    for k, (s, event) in enumerate(zip(states, step_events(states, actions))):
         x0 = k * (1 + gap)
         caption = "start" if k == 0 else f"{k}. {ACTIONS[actions[k - 1]]}"
-        if k and actions[k - 1] == GO:
-            before, after = bits(int(states[k - 1])), bits(int(s))
-            if before[ROBOT_COFFEE] and not after[ROBOT_COFFEE]:
-                caption += "\nspilled!"
-                ax.add_patch(patches.Ellipse((x0 + (0.8 if after[IN_CAFE] else 0.2), 0.25), 0.2, 0.04, fc=_BROWN))
-            elif after[WET]:
-                caption += "\ngot wet"
+        if event:
+            caption += "\n" + event
+        if event == "spilled!":
+            ax.add_patch(patches.Ellipse((x0 + (0.8 if bits(int(s))[IN_CAFE] else 0.2), 0.25), 0.2, 0.04, fc=_BROWN))
         draw_state(ax, int(s), robot, caption, x0)
     fig.suptitle(title + "   —   rate it from 0 (lowest) to 10 (highest)", fontsize=8)
     fig.savefig(path, dpi=90)

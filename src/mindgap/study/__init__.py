@@ -1,4 +1,4 @@
-"""The study app (SPEC §5): run the dissertation's user studies with real people in a browser.
+"""The study app: run the dissertation's user studies with real people in a browser.
 
 Study files (:mod:`.config`), the items they show (:mod:`.items`), the SQLite store
 (:mod:`.store`), the web app (:mod:`.app`), exports to the files the fitting commands

@@ -1,4 +1,4 @@
-"""The study web app: participant pages, the researcher's dashboard and exports (SPEC §5).
+"""The study web app: participant pages, the researcher's dashboard and exports.
 
 The framework is FastAPI (routing, forms, a thread pool for the blocking store) with
 Jinja2 templates rendered on the server; the only JavaScript shows the slider's value

@@ -1,4 +1,4 @@
-"""Study files: the YAML a researcher writes to declare a study (SPEC §5; dissertation Figs. 9–11, 32–33).
+"""Study files: the YAML a researcher writes to declare a study (dissertation Figs. 9–11, 32–33).
 
 A study file names the protocol, the domain and where its items come from, the texts
 a participant reads, the Likert questionnaire, the sanity-check items, the minimum
@@ -19,7 +19,7 @@ time per item and the number of participant links to create::
 
 Parsing is hand-written (not a schema library) so that every problem is reported as
 one sentence naming the key, e.g. ``study.yaml: questionnaire[0].scale must be two
-integers like [1, 5]``. See ``docs/study/README`` and the example files in
+integers like [1, 5]``. See ``docs/study.md`` and the example files in
 ``mindgap/study/examples``.
 """
 

@@ -1,4 +1,4 @@
-"""Answers out of the store, in the files the fitting commands read (SPEC §5).
+"""Answers out of the store, in the files the fitting commands read.
 
 * ``ratings.csv`` (protocol ``rating``) — the ratings-file format of
   :mod:`mindgap.feedback.ratings_file`: one row per demonstrated step,

@@ -1,4 +1,4 @@
-"""The items a study shows, built once from its study file and stored with the answers (SPEC §5).
+"""The items a study shows, built once from its study file and stored with the answers.
 
 An item is either a *demonstration* to rate (tabular domains: ``states [n + 1]``,
 ``actions [n]``) or a *pair* of segments to compare (terrain worlds: each segment

@@ -1,4 +1,4 @@
-"""Live mode: a training run asks its preference queries through a study store (SPEC §5).
+"""Live mode: a training run asks its preference queries through a study store.
 
 ``mindgap pebble --world nav1 --teacher study:STORE`` makes :class:`StudyTeacher` the
 run's :class:`~mindgap.teachers.host.HostTeacher`: every feedback round it posts its

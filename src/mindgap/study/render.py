@@ -122,19 +122,13 @@ class Renderer:
 def step_captions(states, actions) -> list[str]:
     """The caption of each step of a coffee demonstration: ``start``, then the action taken
     and what went wrong on the way (the captions of Fig. 11's strip)."""
-    from ..envs.coffee import ACTIONS, GO, ROBOT_COFFEE, WET, bits
+    from ..envs.coffee import ACTIONS
+    from ..plotting.coffee import step_events
 
-    captions = ["start"]
-    for k in range(1, len(states)):
-        caption = f"{k}. {ACTIONS[actions[k - 1]]}"
-        if actions[k - 1] == GO:
-            before, after = bits(int(states[k - 1])), bits(int(states[k]))
-            if before[ROBOT_COFFEE] and not after[ROBOT_COFFEE]:
-                caption += ", spilled!"
-            elif after[WET]:
-                caption += ", got wet"
-        captions.append(caption)
-    return captions
+    events = step_events(states, actions)
+    return ["start"] + [
+        f"{k}. {ACTIONS[actions[k - 1]]}" + (f", {events[k]}" if events[k] else "") for k in range(1, len(states))
+    ]
 
 
 def save_coffee_step(path: Path, state: int, robot: str, spilled: bool = False) -> None:

@@ -1,4 +1,4 @@
-"""The study store: SQLite in WAL mode, a versioned schema, one row per answer (SPEC §5).
+"""The study store: SQLite in WAL mode, a versioned schema, one row per answer.
 
 Written on the standard library's ``sqlite3`` rather than an ORM because what matters
 here is a handful of exact guarantees, each one a line of SQL:
