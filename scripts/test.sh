@@ -17,8 +17,15 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
     echo "scripts/test.sh: no apt-get to install chromium; the browser test will be skipped" >&2
   fi
 fi
+# `--slow` runs the slow tier instead: the statistical "did it learn" checks (tests marked
+# slow; docs/development.md lists them with their runtimes).
+marker=()
+if [[ "${1:-}" == "--slow" ]]; then
+  shift
+  marker=(-m slow)
+fi
 .venv/bin/ruff check src tests benchmarks
 # Two test processes (pytest-xdist): most of the suite's time is XLA compiling, one core each.
 # A file's tests stay in one process (--dist loadfile), so those built on one configuration
 # compile it once.
-exec .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" --dist loadfile "$@"
+exec .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" --dist loadfile "${marker[@]}" "$@"
