@@ -23,9 +23,10 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from .experiments.registry import NAMES as EXPERIMENTS
+from .experiments.terrain_cli import NAMES as TERRAIN_EXPERIMENTS
+
 DOMAINS = ("grid7", "coffee")
-EXPERIMENTS = ("table1", "coffee", "nav", "priors", "sampling", "eps", "lambda")
-TERRAIN_EXPERIMENTS = ("nav", "priors", "sampling", "eps", "lambda")
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -64,19 +64,13 @@ def jobs(cfg: LambdaConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: LambdaConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
-    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
-    return ec.run_experiment(
-        cfg,
-        out,
-        jobs(cfg),
-        write_outputs,
-        fresh=fresh,
-        progress=progress,
-        assemble_only=assemble_only,
-        name="lambda",
-        only=only,
-    )
+def run(cfg: LambdaConfig, out: Path, **kw) -> dict:
+    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
+
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
+    :func:`~.prefbias_common.run_experiment`.
+    """
+    return ec.run_experiment(cfg, out, jobs(cfg), write_outputs, name="lambda", **kw)
 
 
 def write_outputs(cfg: LambdaConfig, out: Path, records: dict) -> dict:

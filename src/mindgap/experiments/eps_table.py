@@ -87,19 +87,13 @@ def jobs(cfg: EPSTableConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: EPSTableConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
-    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
-    return ec.run_experiment(
-        cfg,
-        out,
-        jobs(cfg),
-        write_outputs,
-        fresh=fresh,
-        progress=progress,
-        assemble_only=assemble_only,
-        name="eps",
-        only=only,
-    )
+def run(cfg: EPSTableConfig, out: Path, **kw) -> dict:
+    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
+
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
+    :func:`~.prefbias_common.run_experiment`.
+    """
+    return ec.run_experiment(cfg, out, jobs(cfg), write_outputs, name="eps", **kw)
 
 
 def _learned(records: dict, spec: str) -> dict[str, dict]:

@@ -79,19 +79,13 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: NavConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
-    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
-    return pc.run_experiment(
-        cfg,
-        out,
-        jobs(cfg),
-        write_outputs,
-        fresh=fresh,
-        progress=progress,
-        assemble_only=assemble_only,
-        name="nav",
-        only=only,
-    )
+def run(cfg: NavConfig, out: Path, **kw) -> dict:
+    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
+
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
+    :func:`~.prefbias_common.run_experiment`.
+    """
+    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="nav", **kw)
 
 
 def _order(rec: dict) -> tuple:

@@ -72,19 +72,13 @@ def jobs(cfg: PriorsConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: PriorsConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
-    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
-    return pc.run_experiment(
-        cfg,
-        out,
-        jobs(cfg),
-        write_outputs,
-        fresh=fresh,
-        progress=progress,
-        assemble_only=assemble_only,
-        name="priors",
-        only=only,
-    )
+def run(cfg: PriorsConfig, out: Path, **kw) -> dict:
+    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
+
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
+    :func:`~.prefbias_common.run_experiment`.
+    """
+    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="priors", **kw)
 
 
 def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:

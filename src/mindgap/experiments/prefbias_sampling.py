@@ -59,19 +59,13 @@ def jobs(cfg: SamplingConfig) -> list[pc.Job]:
     return out
 
 
-def run(cfg: SamplingConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
-    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary."""
-    return pc.run_experiment(
-        cfg,
-        out,
-        jobs(cfg),
-        write_outputs,
-        fresh=fresh,
-        progress=progress,
-        assemble_only=assemble_only,
-        name="sampling",
-        only=only,
-    )
+def run(cfg: SamplingConfig, out: Path, **kw) -> dict:
+    """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
+
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
+    :func:`~.prefbias_common.run_experiment`.
+    """
+    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="sampling", **kw)
 
 
 def write_outputs(cfg: SamplingConfig, out: Path, records: dict) -> dict:

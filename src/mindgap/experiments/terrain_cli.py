@@ -17,27 +17,20 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-MODULES = {
-    "nav": "prefbias_nav",
-    "priors": "prefbias_priors",
-    "sampling": "prefbias_sampling",
-    "eps": "eps_table",
-    "lambda": "eps_lambda",
-}
-NAMES = tuple(MODULES)
+from . import registry
+
+NAMES = ("nav", "priors", "sampling", "eps", "lambda")
 
 
 def reproduce(args) -> int:
     """Run one of :data:`NAMES` from the parsed ``mindgap reproduce`` arguments; print its table."""
-    import importlib
-
     if args.name not in NAMES:
         raise ValueError(f"unknown terrain experiment {args.name!r}: choose from {', '.join(NAMES)}")
     if getattr(args, "participants", None) is not None:
         raise ValueError("--participants belongs to the coffee study")
     if getattr(args, "shard", None):
         raise ValueError(f"--shard is not supported by {args.name}: its seeds already run together in one program")
-    module = importlib.import_module(f".{MODULES[args.name]}", __package__)
+    module = registry.module(args.name)
     cfg = module.preset("fast" if args.fast else "full")
     if args.seeds is not None:
         if args.seeds < 1:
