@@ -80,7 +80,8 @@ def steering_control(y, heading, speed, target_lane) -> jax.Array:
     heading_ref = jnp.clip(heading_command, -jnp.pi / 4, jnp.pi / 4)  # the lane's own heading is 0
     heading_rate_command = KP_HEADING * wrap_to_pi(heading_ref - heading)
     slip_angle = jnp.arcsin(jnp.clip(LENGTH / 2 / not_zero(speed) * heading_rate_command, -1, 1))
-    steering = jnp.arctan(2 * jnp.tan(slip_angle))
+    # arctan(2 tan δ) written so that a saturated slip angle keeps its sign: float32's π/2 is past the pole of tan
+    steering = jnp.arctan2(2 * jnp.sin(slip_angle), jnp.cos(slip_angle))
     return jnp.clip(steering, -MAX_STEERING_ANGLE, MAX_STEERING_ANGLE)
 
 
