@@ -53,9 +53,9 @@ def test_the_world_follows_the_interface(key):
 
 
 def test_the_env_spec_reaches_the_factory():
-    world = resolve_env("mindgap.envs.driving:make_world,sleet=0.25,traffic=2")
-    assert float(world.params.sleet) == 0.25 and world.params.n_traffic == 2
-    assert world.name == "driving,sleet=0.25,traffic=2" and make_world().name == "driving"
+    world = resolve_env("mindgap.envs.driving:make_world,sleet=0.25,traffic=2,brake_first=3")
+    assert float(world.params.sleet) == 0.25 and world.params.n_traffic == 2 and int(world.params.brake_first) == 3
+    assert world.name == "driving,brake_first=3,sleet=0.25,traffic=2" and make_world().name == "driving"
 
 
 @pytest.mark.parametrize(
@@ -65,7 +65,7 @@ def test_the_env_spec_reaches_the_factory():
         ({"sleet": -0.1}, "sleet must be in [0, 1]"),
         ({"lanes": 1}, "lanes must be at least 2"),
         ({"start_lane": 3}, "start_lane must be in 0 … 2"),
-        ({"brake_window": (5, 2)}, "brake_window must satisfy"),
+        ({"brake_first": 5, "brake_last": 2}, "brake_window must satisfy"),
         ({"traffic": 9}, "traffic must be in 0 … 4"),
         ({"weights": [1.0, 2.0]}, "weights must hold 4 numbers"),
     ],

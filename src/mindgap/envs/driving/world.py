@@ -247,17 +247,20 @@ class DrivingWorld(World):
         return jnp.concatenate([ego, jnp.tile(per_car, (d - EGO_OBS) // 3)]).astype(jnp.float32)
 
 
-def make_world(sleet: float = 1.0, traffic: int = 0, **kwargs) -> DrivingWorld:
-    """The driving world at sleet level ``sleet`` with ``traffic`` other cars (``--env
-    mindgap.envs.driving:make_world,sleet=0.5``); ``kwargs`` go to
+def make_world(
+    sleet: float = 1.0, traffic: int = 0, brake_first: int = 1, brake_last: int = 4, **kwargs
+) -> DrivingWorld:
+    """The driving world at sleet level ``sleet`` with ``traffic`` other cars, the front car braking at a
+    decision step drawn from ``brake_first … brake_last`` (``--env
+    mindgap.envs.driving:make_world,sleet=0.5,brake_first=2``); other ``kwargs`` go to
     :func:`~mindgap.envs.driving.params.make_params`.
 
     Its belief ``dry`` is the same world on a dry road: the availability bias of §4.4.2, a person
     who expects braking on sleet to work as it always has.
     """
-    params = make_params(sleet=sleet, traffic=traffic, **kwargs)
-    args = {"sleet": sleet, "traffic": traffic, **kwargs}
-    defaults = {"sleet": 1.0, "traffic": 0}
+    params = make_params(sleet=sleet, traffic=traffic, brake_window=(brake_first, brake_last), **kwargs)
+    args = {"sleet": sleet, "traffic": traffic, "brake_first": brake_first, "brake_last": brake_last, **kwargs}
+    defaults = {"sleet": 1.0, "traffic": 0, "brake_first": 1, "brake_last": 4}
     name = ",".join(["driving", *(f"{k}={v}" for k, v in sorted(args.items()) if defaults.get(k, object()) != v)])
     return DrivingWorld(
         name,
