@@ -5,12 +5,17 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.envs.driving import log_prob, make_params, observe, reset, step
+from mindgap.envs.driving import log_prob as _log_prob
+from mindgap.envs.driving import make_params, observe, reset
+from mindgap.envs.driving import step as _step
 from mindgap.envs.driving.params import IDLE, SLOWER, Grip
 from mindgap.envs.driving.sleet import K, braked_speed, factor_mean_std, factor_of_speed, log_prob_factor
 from mindgap.envs.driving.world import SPEED_SCALE
 
 PARAMS = make_params(sleet=1.0, brake_window=(0, 0))
+step, log_prob = jax.jit(_step), jax.jit(_log_prob)
+N = 4000
+"""Samples per batch: every test draws batches of this size, so the sampler compiles once."""
 SPEED = 2  # the observation's speed entry
 
 
@@ -43,7 +48,7 @@ def speed_grid(n=200_001):
 def test_the_density_of_the_realised_deceleration_integrates_to_one(key, sleet):
     s = braking_state(key)
     params = PARAMS.with_sleet(sleet)
-    obs, nxt = observe(s, params), next_obs_sample(key[None], s, params)[0]
+    obs, nxt = observe(s, params), next_obs_sample(jax.random.split(key, N), s, params)[0]
     v = speed_grid()
     density = np.exp(np.asarray(log_probs(obs, nxt, jnp.asarray(v, jnp.float32), params), np.float64))
     # over the realised deceleration d = (25 − v') / 1 s, dd = dv'
@@ -57,9 +62,10 @@ def test_the_density_of_the_realised_deceleration_integrates_to_one(key, sleet):
 def test_the_density_matches_the_steps_samples(key, sleet):
     s = braking_state(key)
     params = PARAMS.with_sleet(sleet)
-    n = 4000
-    samples = np.sort(np.asarray(next_obs_sample(jax.random.split(key, n), s, params)[:, SPEED], np.float64)) * 30
-    obs, nxt = observe(s, params), next_obs_sample(key[None], s, params)[0]
+    n = N
+    sampled = next_obs_sample(jax.random.split(key, n), s, params)
+    samples = np.sort(np.asarray(sampled[:, SPEED], np.float64)) * 30
+    obs, nxt = observe(s, params), sampled[0]
     v = speed_grid()
     density = np.exp(np.asarray(log_probs(obs, nxt, jnp.asarray(v, jnp.float32), params), np.float64))
     cdf = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1]) * np.diff(v))])
@@ -87,7 +93,7 @@ def test_a_dry_road_belief_finds_sleety_braking_unlikely_but_possible(key):
     s = braking_state(key)
     truth, dry = PARAMS, PARAMS.with_sleet(0.0)
     obs = observe(s, truth)
-    nxt = next_obs_sample(jax.random.split(key, 64), s, truth)
+    nxt = next_obs_sample(jax.random.split(key, N), s, truth)[:64]
     lp_true = np.asarray(jax.vmap(log_prob, (None, None, 0, None))(obs, jnp.int32(SLOWER), nxt, truth))
     lp_dry = np.asarray(jax.vmap(log_prob, (None, None, 0, None))(obs, jnp.int32(SLOWER), nxt, dry))
     assert np.all(np.isfinite(lp_true)) and np.all(np.isfinite(lp_dry))
