@@ -26,6 +26,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 
+from .driving.highway import register as register_driving
 from .interface import Box, Env, EnvError, World
 from .lunar import ENV_ID as LANDER_ID
 from .lunar import lander_reward
@@ -35,9 +36,11 @@ from .mujoco_noise import register as register_noisy
 
 
 def register_envs() -> None:
-    """Register this package's gymnasium ids (the solar-wind lander, the noisy hopper and cheetah)."""
+    """Register this package's gymnasium ids (the solar-wind lander, the noisy hopper and cheetah, the sleety
+    highway of :mod:`~mindgap.envs.driving.highway`)."""
     register_lander()
     register_noisy()
+    register_driving()
 
 
 def _host_only(*_args, **_kwargs):
