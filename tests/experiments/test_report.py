@@ -16,7 +16,7 @@ import pytest
 from mindgap.cli import main
 from mindgap.experiments import registry
 from mindgap.experiments._runfolder import RunFolder, same_config, to_jsonable
-from mindgap.experiments.report import claims_markdown, find_runs, table_blocks
+from mindgap.experiments.report import claims_markdown, find_runs, table_blocks, tally_sentence
 from mindgap.experiments.report_catalog import CATALOG
 
 
@@ -104,6 +104,22 @@ def test_report_shows_every_experiment_with_its_claims_and_marks_fast_and_partia
     assert md.index("eps (Table 3): ours") > md.index("### Table 3")
     assert "<table>" in html and "12.17" in html and "95.53 (1.88)" in html
     assert "report in" in capsys.readouterr().out
+
+
+def test_the_tally_names_finished_full_runs_with_or_without_claims(tmp_path):
+    runs = tmp_path / "runs"
+    _folder(runs, "nav", "full")
+    sampling = _folder(runs, "sampling", "full")
+    summary = json.loads((sampling / "summary.json").read_text())
+    summary["claims"] = []  # sampling describes its figure and decides no claim by a rule
+    (sampling / "summary.json").write_text(json.dumps(summary))
+    _folder(runs, "priors", "fast")
+    _folder(runs, "lambda", "full", missing=("w/job2",))
+    sentence = tally_sentence(find_runs([runs]))
+    # the partial run's claims count, and the sentence says whose they are
+    assert sentence.startswith("2 of 4 claims hold in the full runs of nav, sampling (partial: lambda);")
+    rest = sentence.split("not run in full yet: ")[1].split(", ")
+    assert "priors" in rest and "lambda" not in rest and "nav" not in rest and "sampling" not in rest
 
 
 def test_report_embeds_figures_in_the_html_and_links_them_in_the_markdown(tmp_path):

@@ -297,10 +297,18 @@ def _between(text: str, start: str, end: str, block: str) -> str:
 
 
 def tally_sentence(runs: list[Run]) -> str:
-    """``N of M claims hold in the full runs of …; not run in full yet: …`` (fast runs left out)."""
+    """``N of M claims hold in the full runs of …; not run in full yet: …`` (fast runs left out).
+
+    An experiment counts as run in full when a finished full-preset run of it is among ``runs``,
+    whether or not it decides claims by a rule (``sampling`` only describes its figure).
+    """
     t = tally(runs)
     total = t["held"] + t["failed"] + t["undecided"]
-    checked = [n for n in registry.NAMES if any(r.experiment == n and r.claims and not r.fast for r in runs)]
-    rest = [n for n in registry.NAMES if n not in checked]
-    text = f"{t['held']} of {total} claims hold in the full runs of {', '.join(checked) or 'no experiment'}"
+    full = [n for n in registry.NAMES if any(r.experiment == n and r.preset == "full" and not r.missing for r in runs)]
+    partial = [
+        n for n in registry.NAMES if n not in full and any(r.experiment == n and r.preset == "full" for r in runs)
+    ]
+    rest = [n for n in registry.NAMES if n not in full and n not in partial]
+    text = f"{t['held']} of {total} claims hold in the full runs of {', '.join(full) or 'no experiment'}"
+    text += f" (partial: {', '.join(partial)})" if partial else ""
     return text + (f"; not run in full yet: {', '.join(rest)}" if rest else "")
