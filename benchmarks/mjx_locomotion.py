@@ -7,11 +7,16 @@ time in a Python loop (the host loop's stepping; N envs on the host cost N times
 MJX rows give the compile time (lowering and compiling the scan) and the best of three timed
 calls after a warm-up; the ratio is MJX steps/s over the host's.
 
+``--sac 1 8`` times instead mindgap's SAC (64 × 64, batch 256, 3,000 steps: 500 random, one
+evaluation episode) on ``mjx:BODY`` and on gymnasium's noisy env through the host loop, for
+each number of seeds: a first run (compiling) and a second (compiled).
+
 ``--accuracy`` prints instead how far each named solver option set moves one step from
 gymnasium's options, in MuJoCo's C engine (float64, so the difference is the options' own),
 from the states of random-action episodes: the table of :mod:`mindgap.envs.mjx_model`.
 
     python benchmarks/mjx_locomotion.py [--body hopper cheetah] [--solver fast] [--steps 100]
+    python benchmarks/mjx_locomotion.py --sac 1 8 --body cheetah
     python benchmarks/mjx_locomotion.py --accuracy
 """
 
@@ -97,6 +102,37 @@ def speed(bodies, solvers, steps: int, gym_steps: int) -> None:
                 print(f"{label:<44} {compile_s:>10.1f} {rate:>10,.0f} {rate / host:>7.2f}×", flush=True)
 
 
+def sac(bodies, seed_counts, steps: int = 3000) -> None:
+    """Seconds of mindgap's SAC on the MJX world and on the gym world through the host loop, compiling and compiled."""
+    from mindgap.algorithms.pbrl import method_config, train
+    from mindgap.algorithms.sac import SACConfig
+    from mindgap.envs.mujoco_noise import IDS
+    from mindgap.envs.resolve import resolve_env
+
+    noisy = {base: noisy for noisy, base in IDS.items()}
+    cfg = method_config(
+        "sac",
+        total_steps=steps,
+        chunk=500,
+        eval_every=steps,
+        eval_episodes=1,
+        sac=SACConfig(hidden=(64, 64), batch_size=256, learning_starts=500),
+    )
+    print(f"SAC, {steps} steps a seed (500 random), one evaluation episode; seconds")
+    print(f"{'world':<36} {'seeds':>5} {'compiling':>10} {'compiled':>9} {'steps/s':>8}")
+    for body in bodies:
+        for spec in (f"gym:{noisy[BODIES[body].gym_id]}", f"mjx:{body}"):
+            world = resolve_env(spec)
+            for seeds in seed_counts:
+                times = []
+                for _ in range(2):
+                    t0 = time.perf_counter()
+                    train(world, cfg, seeds=seeds, progress=False)
+                    times.append(time.perf_counter() - t0)
+                rate = steps * seeds / times[1]
+                print(f"{spec:<36} {seeds:>5} {times[0]:>10.1f} {times[1]:>9.1f} {rate:>8,.0f}", flush=True)
+
+
 def accuracy(bodies, episodes: dict, seed: int = 0) -> None:
     """One-step |Δ qvel| of each solver option set against gymnasium's, in MuJoCo's C engine."""
     import gymnasium
@@ -145,8 +181,11 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=100, help="steps per world at 1 and 8 worlds (fewer at 64 and 256)")
     p.add_argument("--gym-steps", type=int, default=5000, help="steps of the gymnasium loop")
     p.add_argument("--accuracy", action="store_true", help="print the solver options' one-step differences instead")
+    p.add_argument("--sac", type=int, nargs="+", metavar="SEEDS", help="time SAC on both runtimes with these seeds")
     args = p.parse_args()
-    if args.accuracy:
+    if args.sac:
+        sac(args.body, args.sac)
+    elif args.accuracy:
         accuracy(args.body, {"hopper": 60, "cheetah": 5})
     else:
         speed(args.body, args.solver, args.steps, args.gym_steps)

@@ -211,7 +211,7 @@ def test_without_mjx_the_error_names_the_extra(monkeypatch):
 @pytest.mark.parametrize("body", ["cheetah", "hopper"])
 def test_gymnasium_s_own_options_simulate_the_same_trajectory(body):
     """With ``solver="gym"`` against gymnasium's env as it is (RK4 and 100 iterations for the hopper):
-    about 100 s on two CPU cores, most of it compiling."""
+    25–45 s each on two busy CPU cores, most of it compiling."""
     with jax.enable_x64(True):
         world = mjx_world(body, share=0.0, solver="gym")
         acts = actions(25, world.env.action_space.dim, seed=6)
@@ -224,7 +224,7 @@ def test_gymnasium_s_own_options_simulate_the_same_trajectory(body):
 
 @pytest.mark.slow
 def test_the_default_hopper_is_gymnasium_s_trajectory_in_float64():
-    """The default ``fast`` options with RK4: about 60 s on two CPU cores, most of it compiling."""
+    """The default ``fast`` options with RK4: about 40 s on two busy CPU cores, most of it compiling."""
     with jax.enable_x64(True):
         world = mjx_world("hopper", share=0.0)
         acts = actions(25, 3, seed=7)
@@ -236,7 +236,7 @@ def test_the_default_hopper_is_gymnasium_s_trajectory_in_float64():
 
 @pytest.mark.slow
 def test_prefbias_runs_on_the_mjx_cheetah_with_the_reliable_person(tmp_path):
-    """The whole PbRL loop jitted on an MJX world, the person scoring with its exact log_prob: about 6 min on
+    """The whole PbRL loop jitted on an MJX world, the person scoring with its exact log_prob: about 4.5 min on
     two busy CPU cores, most of it compiling."""
     import json
 

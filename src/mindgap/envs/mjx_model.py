@@ -22,14 +22,16 @@ max |Δ qvel| over the joints):
 ========  =======================  ========================  ======  ========  =========
 body      solver                   options                   median  95th pct  max
 ========  =======================  ========================  ======  ========  =========
-cheetah   ``fast``                 4 iterations, 4 ls steps  0       0         4.1e-3
+cheetah   ``fast``                 4 iterations, 4 ls steps  0       0         4.0e-3
 hopper    ``fast``                 4 iterations, 4 ls steps  0       0         4.4e-16
 hopper    ``euler``                ``fast`` + Euler          4.2e-3  9.3e-2    6.2e-1
 cheetah   (2 iterations)           not offered               0       0.92      9.7
 cheetah   (Euler damping off)      not offered               1.0     2.9       17
 ========  =======================  ========================  ======  ========  =========
 
-against the hidden noise's N(0, 0.5²) on every joint velocity.
+against the hidden noise's N(0, 0.5²) on every joint velocity (``python
+benchmarks/mjx_locomotion.py --accuracy`` measures it again). These are the states of random
+actions; a policy that runs fast may meet contacts that need more iterations.
 """
 
 from __future__ import annotations
@@ -77,7 +79,7 @@ SOLVERS = {
 """Named solver options: ``gym`` keeps gymnasium's (the model file's and MuJoCo's defaults);
 ``fast`` caps the solver (the same simulation within the table above); ``euler`` also
 integrates with semi-implicit Euler (the cheetah already does; the hopper's RK4 becomes
-Euler: another simulation, about five times faster)."""
+Euler: another simulation, four to ten times faster on two CPU cores)."""
 
 
 def mjx():
