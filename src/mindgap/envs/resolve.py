@@ -8,7 +8,10 @@
   (``examples/point_mass.py:make_world,drift=0.1``) and must return an
   :class:`~mindgap.envs.interface.World`;
 * ``gym:ID`` (``gym:Pendulum-v1,g=9.81``): a gymnasium environment, stepped on the host
-  (:mod:`~mindgap.envs.gym_world`; ``max_episode_steps=N`` sets its horizon).
+  (:mod:`~mindgap.envs.gym_world`; ``max_episode_steps=N`` sets its horizon);
+* ``mjx:hopper`` or ``mjx:cheetah`` (``mjx:hopper,share=0.1,solver=gym``): gymnasium's hopper
+  or half-cheetah with hidden noise as a pure-JAX world on MuJoCo's JAX backend
+  (:mod:`~mindgap.envs.mjx_locomotion`).
 
 Every problem is one line (an :class:`~mindgap.envs.interface.EnvError`): nothing is trained
 or written before the world has passed :func:`check_world`.
@@ -79,6 +82,12 @@ def resolve_env(spec: str):
         from .gym_world import gym_world_from_spec
 
         return gym_world_from_spec(spec)
+    if spec.startswith("mjx:"):
+        from .mjx_locomotion import mjx_world_from_spec
+
+        world = mjx_world_from_spec(spec)
+        check_world(world, spec)
+        return world
     head, _, kwargs = spec.partition(",")
     if ":" in head:
         target, _, factory = head.rpartition(":")
