@@ -16,7 +16,7 @@ def test_two_state_mdp_matches_hand_solution():
     t = np.zeros((2, 2, 2), np.float32)
     t[0, 0, 0] = t[1, 0, 1] = t[0, 1, 1] = t[1, 1, 0] = 1.0
     probs, successors = sparse_form(t)
-    assert probs.shape == (2, 2, 1)
+    assert probs.shape == (2, 2, 2) and successors.shape == (2, 2)
     q = sparse_q_values(probs, successors, jnp.asarray([1.0, 0.0]), 0.5, 200)
     np.testing.assert_allclose(q, [[2.0, 1.5], [0.5, 1.0]], atol=1e-6)
 
@@ -24,9 +24,9 @@ def test_two_state_mdp_matches_hand_solution():
 def test_sparse_form_keeps_every_transition():
     t = np.asarray(make_grid(4, "reversed", seed=0).human_transitions)
     probs, successors = sparse_form(t)
-    assert probs.shape == (16, 4, 4)  # the intended move and three slips; walls merge some
+    assert probs.shape == (16, 4, 4)  # the four neighbours; walls merge some into the cell itself
     dense = np.zeros_like(t)
-    np.add.at(dense, (np.arange(16)[:, None, None], np.arange(4)[None, :, None], successors), probs)
+    np.add.at(dense, (np.arange(16)[:, None, None], np.arange(4)[None, :, None], successors[:, None]), probs)
     np.testing.assert_array_equal(dense, t)
 
 
@@ -137,19 +137,44 @@ def test_gradient_at_the_default_accuracy_is_close_to_the_converged_one():
         np.testing.assert_allclose(a, b, rtol=1e-3, atol=1e-3 * np.abs(b).max())
 
 
+def greedy_chain(key, size=3, batch=4):
+    """A belief's greedy-policy weights ``w [A, K, S, B]`` on ``successors [S, K]``, and ``P_π [B, S, S]``."""
+    k1, k2 = jax.random.split(key)
+    space, theta, _ = random_belief(k1, size=size, batch=(batch,))
+    theta = theta.astype(jnp.float64)
+    probs, successors = space.successor_form(theta)  # [B, 1, A, K]
+    n = size * size
+    pi = jax.random.randint(k2, (batch, n), 0, 4)
+    p = np.asarray(probs)[:, 0]  # [B, A, K]
+    w = np.zeros((4, 5, n, batch))
+    for b in range(batch):
+        w[pi[b], :, np.arange(n), b] = p[b, pi[b]]
+    t = np.asarray(space.to_transitions(theta))  # [B, S, A, S']
+    chain = np.stack([t[b, np.arange(n), pi[b]] for b in range(batch)])
+    return jnp.asarray(w), successors, chain
+
+
 def test_adjoint_solve_matches_a_dense_solve():
     with jax.enable_x64(True):
-        space, theta, reward = random_belief(jax.random.key(9), size=3, batch=(1,))
-        probs, successors = space.successor_form(theta.astype(jnp.float64))
-        pi = jax.random.randint(jax.random.key(10), (9,), 0, 4)
-        t = np.asarray(space.to_transitions(theta.astype(jnp.float64))[0])[np.arange(9), pi]  # P_π [S, S']
-        v_bar = np.asarray(jax.random.normal(jax.random.key(11), (9,), jnp.float64))
-        # w(a, k, s) = π(a|s) p(k|s, a), in the solver's layout [A, K, S, B]
-        p = np.asarray(probs)[0, 0]  # [A, K]
-        w = np.zeros((4, 5, 9, 1))
-        w[pi, :, np.arange(9), 0] = p[pi]
-        u = adjoint_solve(jnp.asarray(w), successors, jnp.asarray(v_bar)[:, None], 0.9, 400)[:, 0]
-        np.testing.assert_allclose(u, np.linalg.solve(np.eye(9) - 0.9 * t.T, v_bar), rtol=1e-10, atol=1e-10)
+        w, successors, chain = greedy_chain(jax.random.key(9))
+        v_bar = np.asarray(jax.random.normal(jax.random.key(11), (9, 4), jnp.float64))
+        u = adjoint_solve(w, successors, jnp.asarray(v_bar), 0.9, 400)
+        exact = np.stack([np.linalg.solve(np.eye(9) - 0.9 * chain[b].T, v_bar[:, b]) for b in range(4)], -1)
+        np.testing.assert_allclose(u, exact, rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("n_iter", [5, 20, 60])
+def test_adjoint_stop_is_certified(n_iter):
+    # ‖u − u*‖₁ ≤ λ^N ‖V̄‖₁ / (1 − λ), whichever of its two estimates the solver returns.
+    with jax.enable_x64(True):
+        w, successors, chain = greedy_chain(jax.random.key(12), size=5, batch=8)
+        v_bar = np.asarray(jax.random.normal(jax.random.key(13), (25, 8), jnp.float64))
+        u = np.asarray(adjoint_solve(w, successors, jnp.asarray(v_bar), 0.9, n_iter))
+        exact = np.stack([np.linalg.solve(np.eye(25) - 0.9 * chain[b].T, v_bar[:, b]) for b in range(8)], -1)
+        err = np.abs(u - exact).sum(0)
+        bound = 0.9**n_iter * np.abs(v_bar).sum(0) / 0.1
+        assert np.all(err <= bound * (1 + 1e-9))
+        assert err.max() > 1e-6 * bound.max()
 
 
 def test_broadcasting_batching_and_vmap():

@@ -23,9 +23,9 @@ takes 30 to 80 of 100.
 **Implicit gradient.** The backward pass differentiates the fixed point
 ``V = max_a (R + λ T_a V)`` instead of the sweeps: with ``P_π`` the greedy policy's
 state-to-state matrix it solves ``(I − λ P_πᵀ) u = V̄`` by the Neumann iteration
-``u ← V̄ + λ P_πᵀ u`` (each step ``K`` scatter-adds over the same successors), stopped
-when the bound ``‖u* − u_n‖₁ ≤ c ‖u_n − u_{n−1}‖₁`` meets ``λ^N ‖V̄‖₁ / (1 − λ)``, the
-forward tolerance's counterpart. Then ``R̄ = u``, ``T̄(s'|s, a) = λ u(s) π(a|s) V(s')``
+``u ← V̄ + λ P_πᵀ u`` (each step ``K`` scatter-adds over the same successors), with the
+dual of MacQueen's extrapolation and a certified stop at ``λ^N ‖V̄‖₁ / (1 − λ)``, the
+forward tolerance's counterpart (:func:`adjoint_solve`). Then ``R̄ = u``, ``T̄(s'|s, a) = λ u(s) π(a|s) V(s')``
 and ``λ̄ = uᵀ P_π V``. At a converged ``V`` this is the exact gradient (the dense
 :func:`mindgap.planning.state_values` computes the same by a dense solve).
 
@@ -52,21 +52,21 @@ CHECK_EVERY = 4
 
 
 def sparse_form(transitions) -> tuple[np.ndarray, np.ndarray]:
-    """A concrete dense ``[S, A, S]`` tensor as ``(probs [S, A, K], successors [S, A, K])``.
+    """A concrete dense ``[S, A, S]`` tensor as ``(probs [S, A, K], successors [S, K])``.
 
-    ``K`` is the most non-zeros of any row; shorter rows point their spare slots at
-    their own state with probability 0.
+    ``successors[s]`` lists the states any action can reach from ``s`` (``K`` is the
+    most of any state; shorter lists repeat ``s`` with probability 0), so a sweep
+    gathers ``K`` values per state whatever the number of actions.
     """
     t = np.asarray(transitions)
-    n_s, n_a, _ = t.shape
-    nz = t != 0
-    width = max(int(nz.sum(-1).max()), 1)
-    # non-zeros first, in state order; spare slots at the state itself
-    order = np.argsort(~nz, axis=-1, kind="stable")[..., :width]
-    probs = np.take_along_axis(t, order, -1)
-    own = np.broadcast_to(np.arange(n_s)[:, None, None], order.shape)
-    successors = np.where(probs != 0, order, own).astype(np.int32)
-    return probs.astype(t.dtype), successors
+    n_s = t.shape[0]
+    reach = (t != 0).any(1)  # [S, S']
+    width = max(int(reach.sum(-1).max()), 1)
+    order = np.argsort(~reach, axis=-1, kind="stable")[:, :width]  # reachable states first
+    successors = np.where(np.take_along_axis(reach, order, -1), order, np.arange(n_s)[:, None]).astype(np.int32)
+    probs = np.take_along_axis(t, np.broadcast_to(order[:, None], (n_s, t.shape[1], width)), -1)
+    probs = np.where(np.take_along_axis(reach, order, -1)[:, None], probs, 0.0).astype(t.dtype)
+    return probs, successors
 
 
 def _layout(probs, successors, reward):
@@ -85,12 +85,6 @@ def _layout(probs, successors, reward):
     return jnp.transpose(p, (3, 2, 1, 0)), r.T, batch
 
 
-def _successor_rows(v, successors, a, k):
-    """``V(succ(s, a, k))`` for every state, ``[S, B]``."""
-    idx = successors[:, k] if successors.ndim == 2 else successors[:, a, k]
-    return v[idx]
-
-
 def _backup(p, successors, r, v, discount):
     """``Q(a, s) = R(s) + λ Σ_k p(k | s, a) V(succ(s, a, k))``, ``[A, S, B]``."""
     n_k, n_a = p.shape[:2]
@@ -98,7 +92,7 @@ def _backup(p, successors, r, v, discount):
         rows = [v[successors[:, k]] for k in range(n_k)]
         nxt = [sum(p[k, a] * rows[k] for k in range(n_k)) for a in range(n_a)]
     else:
-        nxt = [sum(p[k, a] * _successor_rows(v, successors, a, k) for k in range(n_k)) for a in range(n_a)]
+        nxt = [sum(p[k, a] * v[successors[:, a, k]] for k in range(n_k)) for a in range(n_a)]
     return r[None] + discount * jnp.stack(nxt)
 
 
@@ -112,25 +106,21 @@ def _solve(p, successors, r, discount, n_iter: int):
     c = discount / (1.0 - discount)
     tol = _tolerance(r, discount, n_iter)
 
-    def sweep(v):
-        return _backup(p, successors, r, v, discount).max(0)
-
-    def half_width(v_prev, v):
-        d = v - v_prev
-        return c * (d.max(0) - d.min(0)) / 2
+    def sweep(_, pair):
+        return pair[1], _backup(p, successors, r, pair[1], discount).max(0)
 
     def cond(carry):
         n, v_prev, v = carry
-        return (n < n_iter) & jnp.any(half_width(v_prev, v) > tol)
+        d = v - v_prev
+        return (n == 0) | ((n < n_iter) & jnp.any(c * (d.max(0) - d.min(0)) / 2 > tol))
 
     def body(carry):
         n, _, v = carry
         steps = jnp.minimum(CHECK_EVERY, n_iter - n)
-        v = jax.lax.fori_loop(0, steps - 1, lambda _, v: sweep(v), v)
-        return n + steps, v, sweep(v)
+        return (n + steps, *jax.lax.fori_loop(0, steps, sweep, (v, v)))
 
     v0 = jnp.zeros_like(r)
-    n, v_prev, v = jax.lax.while_loop(cond, body, (jnp.asarray(1), v0, sweep(v0)))
+    n, v_prev, v = jax.lax.while_loop(cond, body, (jnp.asarray(0), v0, v0))
     d = v - v_prev
     return v + c * (d.max(0) + d.min(0)) / 2, n
 
@@ -167,20 +157,36 @@ def _transpose_apply(w, successors, u):
 
 
 def adjoint_solve(w, successors, v_bar, discount, n_iter: int):
-    """``u = (I − λ P_πᵀ)^{-1} V̄`` by ``u ← V̄ + λ P_πᵀ u`` until ``c ‖Δu‖₁`` meets the tolerance."""
+    """``u = (I − λ P_πᵀ)^{-1} V̄`` ``[S, B]`` by Neumann increments with a certified stop.
+
+    With ``Δ_n = (λ P_πᵀ)^n V̄`` and ``u_n = Σ_{j≤n} Δ_j``, two estimates carry a bound in
+    ``ℓ₁`` (``P_πᵀ`` is column-stochastic, so it never grows an ``ℓ₁`` norm):
+
+    - ``u_n``, within ``‖Δ_{n+1}‖₁ / (1 − λ)``;
+    - ``u_n + c Δ_n`` (the missing mass ``c Σ Δ_n`` is exact; only its shape is
+      guessed), within ``λ ‖P_πᵀ Δ_n − Δ_n‖₁ / (1 − λ)²``, small once ``Δ_n`` has the
+      shape of the chain's stationary distribution.
+
+    Stops when one of them is within ``λ^N ‖V̄‖₁ / (1 − λ)`` for every sample (the first
+    one is by ``n = N``) and returns it.
+    """
     c = discount / (1.0 - discount)
     tol = discount**n_iter * jnp.abs(v_bar).sum(0) / (1.0 - discount)
 
     def cond(carry):
-        n, du, _ = carry
-        return (n < n_iter) & jnp.any(c * jnp.abs(du).sum(0) > tol)
+        n, _, _, _, bound = carry
+        return (n == 0) | ((n < n_iter) & jnp.any(bound > tol))
 
     def body(carry):
-        n, du, u = carry
-        du = discount * _transpose_apply(w, successors, du)
-        return n + 1, du, u + du
+        n, du, u, _, _ = carry
+        moved = _transpose_apply(w, successors, du)  # P_πᵀ Δ_n
+        plain = discount * jnp.abs(moved).sum(0) / (1.0 - discount)
+        shaped = c / (1.0 - discount) * jnp.abs(moved - du).sum(0)
+        estimate = jnp.where(shaped < plain, u + c * du, u)
+        return n + 1, discount * moved, u + discount * moved, estimate, jnp.minimum(plain, shaped)
 
-    return jax.lax.while_loop(cond, body, (jnp.asarray(0), v_bar, v_bar))[2]
+    init = (jnp.asarray(0), v_bar, v_bar, v_bar, jnp.zeros(v_bar.shape[1:], v_bar.dtype))
+    return jax.lax.while_loop(cond, body, init)[3]
 
 
 def _values_bwd(n_iter, res, v_bar):
@@ -188,7 +194,10 @@ def _values_bwd(n_iter, res, v_bar):
     pi, w = _greedy_weights(p, successors, r, v, discount)
     u = adjoint_solve(w, successors, v_bar, discount, n_iter)
     n_k, n_a = p.shape[:2]
-    v_next = jnp.stack([jnp.stack([_successor_rows(v, successors, a, k) for k in range(n_k)]) for a in range(n_a)])
+    if successors.ndim == 2:
+        v_next = jnp.stack([v[successors[:, k]] for k in range(n_k)])[None]  # [1, K, S, B]
+    else:
+        v_next = jnp.stack([jnp.stack([v[successors[:, a, k]] for k in range(n_k)]) for a in range(n_a)])
     # T̄(k | s, a) = λ u(s) π(a|s) V(succ(s, a, k)), in p's layout [K, A, S|1, B]
     p_bar = jnp.swapaxes(discount * u * pi[:, None] * v_next, 0, 1)
     if p.shape[2] == 1:  # one distribution shared by every state
