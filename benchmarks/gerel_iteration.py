@@ -134,7 +134,9 @@ def speed_up(sizes, n_demos, rounds, chunk):
 
 def cost_curve(sizes, n_demos, rounds, chunk, numpy_max):
     print("\ncost curve: ours per iteration (median of rounds), Bellman sweeps per evaluation, NumPy (one iteration)")
-    print(f"{'grid':>7} {'states':>7} {'sweeps':>7} {'score [ms]':>11} {'pathwise [ms]':>14} {'numpy [s]':>10} {'speed-up':>9}")
+    print(
+        f"{'grid':>7} {'states':>7} {'sweeps':>7} {'score [ms]':>11} {'pathwise [ms]':>14} {'numpy [s]':>10} {'speed-up':>9}"
+    )
     for size in sizes:
         task, rated, space = setup(size, n_demos)
         row = []
