@@ -7,11 +7,13 @@ import pytest
 
 from mindgap import rng
 from mindgap.algorithms.gerel import GeReLConfig, RatingData, fit_gerel
-from mindgap.algorithms.gerel_model import pathwise_elbo, score_gradient
+from mindgap.algorithms.gerel_model import believed_q_values, pathwise_elbo, score_gradient
+from mindgap.envs.coffee import factored_layout, make_coffee
 from mindgap.envs.grid import move_targets
-from mindgap.feedback.demos import random_demonstrations
+from mindgap.feedback.demos import RatedDemonstrations, random_demonstrations
 from mindgap.metrics import all_metrics
-from mindgap.models.belief import tied
+from mindgap.models.belief import factored, per_state_action, tied
+from mindgap.planning import q_values
 from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 
@@ -38,6 +40,47 @@ def test_score_and_pathwise_gradients_agree_in_expectation():
         s_err = np.asarray(s.std(0)) / np.sqrt(len(keys))  # standard error of the noisier estimator
         assert np.all(np.abs(p_mean - s_mean) < 4 * s_err + 0.05 * np.abs(p_mean).max())
         assert np.linalg.norm(p_mean) > 0.1  # a real gradient, not zero against zero
+
+
+def world_and_space(param):
+    """A small world, rated random demonstrations and a belief space of the given kind."""
+    if param == "factored":
+        mdp = make_coffee("mobile")
+        rated = RatedDemonstrations(random_demonstrations(rng.key(0), mdp, 20, 4), jnp.full(20, 5.0))
+        return mdp, rated, factored(*factored_layout(("spill",)))
+    task, rated = rated_grid(3, "reversed", 20, length=4, corners=(0, 2))
+    if param == "tied":
+        return task.mdp, rated, tied(move_targets(3), 4)
+    return task.mdp, rated, per_state_action(task.mdp.transitions, full=param == "full")
+
+
+@pytest.mark.parametrize("param", ["tied", "per-sa", "full", "factored", "frozen"])
+def test_believed_q_values_and_gradients_match_dense_value_iteration(param):
+    # Each belief parameterisation plans on its successor form (full: dense); the Q-values
+    # and their gradients in (w, θ) are those of dense value iteration on T(θ), converged.
+    mdp, rated, space = world_and_space(param)
+    cfg = GeReLConfig(n_samples=2, vi_iterations=400, freeze_belief=param == "frozen")
+    with jax.enable_x64(True):
+        mdp = jax.tree_util.tree_map(lambda x: jnp.asarray(x, jnp.float64), mdp)
+        data = RatingData.build(mdp, space, rated)
+        k1, k2, k3 = jax.random.split(rng.key(3), 3)
+        w = jax.random.normal(k1, (2, mdp.n_features), jnp.float64)
+        alpha = jnp.where(space.mask, 1.0, 1e-3).astype(jnp.float64)
+        theta = jnp.where(space.mask, jax.random.dirichlet(k2, alpha, (2, alpha.shape[0])), 0.0)
+        weights = jax.random.normal(k3, (2, mdp.n_states, mdp.n_actions), jnp.float64)
+
+        def ours(w, theta):
+            return (believed_q_values(w, None if cfg.freeze_belief else theta, data, cfg) * weights).sum()
+
+        def dense(w, theta):
+            t = mdp.transitions if cfg.freeze_belief else space.to_transitions(theta)
+            return (q_values(t, mdp.reward(w), mdp.discount, 400) * weights).sum()
+
+        np.testing.assert_allclose(ours(w, theta), dense(w, theta), rtol=1e-10)
+        grads = jax.grad(ours, (0, 1))(w, theta)
+        for a, b in zip(grads, jax.grad(dense, (0, 1))(w, theta), strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-8)
+        assert np.abs(grads[0]).max() > 0.1
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,12 @@ Two gradient estimators of the ELBO:
   entropies and prior terms, Adam on ``(μ, log α)``. The default: it reaches the
   Table 1 targets in far fewer iterations (``benchmarks/estimators.py``).
 
+Each sample's Q-values (the person's expected policy) come from value iteration on the
+belief's successor form, ``K`` next states per ``(s, a)`` instead of ``S``, stopped once
+MacQueen's bounds certify the accuracy of ``vi_iterations`` plain sweeps and
+differentiated implicitly at the fixed point
+(:mod:`mindgap.planning.sparse_value_iteration`); ``full`` beliefs keep the dense tensor.
+
 GeReL⁻ is the same inference with the belief frozen to the true dynamics
 (``freeze_belief=True``). Many local optima exist (a flipped reward with a permuted
 belief explains ratings almost as well, SPEC §4), so every fit runs vmapped random

@@ -1,5 +1,8 @@
 """GeReL's probabilistic model and its two ELBO gradient estimators (§2.2.2).
 
+- :func:`believed_q_values`: the person's optimal Q-values under each sampled
+  ``(w, Θ)`` — value iteration over the belief's successor form
+  (:func:`mindgap.planning.sparse_q_values`), dense only for ``full`` beliefs.
 - :func:`rating_log_likelihood`: ``log p(Γ | Z, w, Θ)`` for a batch of sampled models.
 - :func:`pathwise_elbo`: a reparameterised ELBO estimate, differentiable in ``(μ, α)``.
 - :func:`score_gradient`: the dissertation's score-function estimate of the ELBO's
@@ -13,13 +16,15 @@ from typing import Literal, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..envs.tabular import TabularMDP
 from ..feedback.demos import RatedDemonstrations
 from ..models import dirichlet
 from ..models.belief import BeliefSpace
 from ..models.rating import censored_log_likelihood, mean_log_policy_from_counts
-from ..planning import q_values
+from ..planning import q_values, sparse_q_values
+from ..planning.sparse_value_iteration import sparse_form
 from ._restarts import RestartSchedule
 
 
@@ -57,7 +62,8 @@ class GeReLConfig(RestartSchedule):
     beta: float = 1.0
     """Rationality of the person's softmax policy."""
     vi_iterations: int = 100
-    """Value-iteration sweeps per evaluation."""
+    """Accuracy of value iteration: each evaluation is certified at least as accurate as
+    this many plain sweeps and stops as soon as it is (never more sweeps)."""
     freeze_belief: bool = False
     """GeReL⁻: keep the belief at the true dynamics and learn only ``μ``."""
 
@@ -72,24 +78,56 @@ class GeReLConfig(RestartSchedule):
             raise ValueError("the score estimator's control variates need n_samples >= 2")
 
 
+SPARSE_MAX_WIDTH = 16
+"""Widest successor list (non-zeros per transition row) that value iteration keeps sparse."""
+
+
 class RatingData(NamedTuple):
-    """What a rating-based fit reads: the world, the belief space, step counts and ratings."""
+    """What a rating-based fit reads: the world, the belief space, step counts and ratings.
+
+    ``true_form`` is the true dynamics as ``(probs, successors)`` ``[S, A, K]`` for
+    GeReL⁻, or ``None`` when rows have more than :data:`SPARSE_MAX_WIDTH` non-zeros.
+    """
 
     mdp: TabularMDP
     space: BeliefSpace
     counts: jnp.ndarray
     ratings: jnp.ndarray
+    true_form: tuple[jnp.ndarray, jnp.ndarray] | None = None
 
     @classmethod
     def build(cls, mdp: TabularMDP, space: BeliefSpace, rated: RatedDemonstrations) -> RatingData:
         counts = rated.demos.step_counts(mdp.n_states, mdp.n_actions)
-        return cls(mdp, space, counts, jnp.asarray(rated.ratings, jnp.float32))
+        probs, successors = sparse_form(np.asarray(mdp.transitions))
+        true_form = (jnp.asarray(probs), jnp.asarray(successors)) if probs.shape[-1] <= SPARSE_MAX_WIDTH else None
+        return cls(mdp, space, counts, jnp.asarray(rated.ratings, jnp.float32), true_form)
 
 
-def rating_log_likelihood(w, transitions, data: RatingData, cfg: GeReLConfig) -> jnp.ndarray:
-    """``log p(Γ | Z, w, Θ)`` for ``w [B, K]`` and transitions ``[B, S, A, S]``, ``[B]``."""
-    mdp = data.mdp
-    q = q_values(transitions, mdp.reward(w), mdp.discount, cfg.vi_iterations)
+def believed_q_values(w, theta, data: RatingData, cfg: GeReLConfig) -> jnp.ndarray:
+    """The person's optimal ``Q`` ``[B, S, A]`` under each sample ``(w_b, θ_b)`` (§2.2.1–2.2.2).
+
+    ``θ`` ``[B, F, M]`` (``None`` for GeReL⁻, which plans in the true dynamics). Local
+    beliefs (tied, per-(s,a), factored) run value iteration on their successor form; a
+    ``full`` belief, whose rows have ``S`` successors, on the dense tensor.
+    """
+    mdp, space = data.mdp, data.space
+    reward = mdp.reward(w)
+    if theta is None:
+        if data.true_form is None:
+            return q_values(mdp.transitions, reward, mdp.discount, cfg.vi_iterations)
+        return sparse_q_values(*data.true_form, reward, mdp.discount, cfg.vi_iterations)
+    if space.kind == "full" or space.targets.shape[-1] > SPARSE_MAX_WIDTH:
+        return q_values(space.to_transitions(theta), reward, mdp.discount, cfg.vi_iterations)
+    probs, successors = space.successor_form(theta)
+    return sparse_q_values(probs, successors, reward, mdp.discount, cfg.vi_iterations)
+
+
+def rating_log_likelihood(w, theta, data: RatingData, cfg: GeReLConfig) -> jnp.ndarray:
+    """``log p(Γ | Z, w, Θ)`` for ``w [B, K]`` and belief factors ``θ [B, F, M]`` (or ``None``), ``[B]``.
+
+    The rating's mean is ``γ_max (Π_i π̃(a_i|s_i))^{1/n}`` with ``π̃ ∝ exp(β Q)`` (§2.2.2).
+    """
+    q = believed_q_values(w, theta, data, cfg)
     log_pi = jax.nn.log_softmax(cfg.beta * q, axis=-1)
     mean = cfg.gamma_max * jnp.exp(mean_log_policy_from_counts(log_pi, data.counts))
     ll = censored_log_likelihood(data.ratings, mean, cfg.rating_noise, cfg.gamma_max)
@@ -102,19 +140,17 @@ def _gauss_logpdf(x, mean, std):
 
 
 def draw(key, mu, alpha, data: RatingData, cfg: GeReLConfig):
-    """``S`` samples ``w ~ q(w)``, ``log θ ~ q(Θ)`` and their transitions ``[S, S, A, S]``."""
+    """``n_samples`` draws ``w ~ q(w)`` ``[n, K]`` and ``log θ ~ q(Θ)`` ``[n, F, M]`` (``None`` for GeReL⁻)."""
     kw, kt = jax.random.split(key)
     sq = cfg.reward_posterior_std
     w = mu + sq * jax.random.normal(kw, (cfg.n_samples,) + mu.shape)
     if cfg.freeze_belief:
-        return w, None, data.mdp.transitions
-    log_theta = dirichlet.sample_log(kt, alpha, data.space.mask, (cfg.n_samples,))
-    return w, log_theta, data.space.to_transitions(jnp.exp(log_theta))
+        return w, None
+    return w, dirichlet.sample_log(kt, alpha, data.space.mask, (cfg.n_samples,))
 
 
-def _gauss_logpdf(x, mean, std):
-    k = x.shape[-1]
-    return -0.5 * (((x - mean) / std) ** 2).sum(-1) - k * jnp.log(std) - 0.5 * k * jnp.log(2 * jnp.pi)
+def _theta(log_theta):
+    return None if log_theta is None else jnp.exp(log_theta)
 
 
 def pathwise_elbo(mu, alpha, key, data: RatingData, cfg: GeReLConfig, temperature=1.0):
@@ -124,9 +160,9 @@ def pathwise_elbo(mu, alpha, key, data: RatingData, cfg: GeReLConfig, temperatur
     """
     mask = data.space.mask
     sp, sq = cfg.reward_prior_std, cfg.reward_posterior_std
-    w, _, transitions = draw(key, mu, alpha, data, cfg)
+    w, log_theta = draw(key, mu, alpha, data, cfg)
     k = mu.shape[-1]
-    elbo = temperature * rating_log_likelihood(w, transitions, data, cfg).mean()
+    elbo = temperature * rating_log_likelihood(w, _theta(log_theta), data, cfg).mean()
     elbo += -0.5 * ((mu**2).sum() + k * sq**2) / sp**2 - k * jnp.log(sp) - 0.5 * k * jnp.log(2 * jnp.pi)
     elbo += k * (0.5 * jnp.log(2 * jnp.pi * jnp.e) + jnp.log(sq))
     if not cfg.freeze_belief:
@@ -154,8 +190,8 @@ def score_gradient(mu, alpha, key, data: RatingData, cfg: GeReLConfig):
     """
     mask = data.space.mask
     sp, sq = cfg.reward_prior_std, cfg.reward_posterior_std
-    w, log_theta, transitions = draw(key, mu, alpha, data, cfg)
-    ll = rating_log_likelihood(w, transitions, data, cfg)  # [S]
+    w, log_theta = draw(key, mu, alpha, data, cfg)
+    ll = rating_log_likelihood(w, _theta(log_theta), data, cfg)  # [S]
     log_pw = _gauss_logpdf(w, 0.0, sp)
     log_qw = _gauss_logpdf(w, mu, sq)
     g_mu = (w - mu) / sq**2

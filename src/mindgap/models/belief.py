@@ -62,6 +62,24 @@ class BeliefSpace:
         """``θ`` ``[..., F, M]`` as successor probabilities ``[..., S, A, M]`` on :attr:`targets`."""
         return theta[..., self.factor, :] * self.mask[self.factor]
 
+    def successor_form(self, theta) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """``θ`` ``[..., F, M]`` as ``(probs, successors)`` for :func:`mindgap.planning.sparse_q_values`.
+
+        The same dynamics as :meth:`to_transitions` without the dense tensor:
+
+        - ``tied``: ``probs [..., 1, A, M]`` (one distribution per action, shared by every
+          state) on ``successors [S, M]``;
+        - ``per-sa``: ``probs [..., S, A, M]`` on ``successors [S, M]`` (a pair's support is
+          the states reachable from its state, whatever the action);
+        - ``factored`` and ``full``: ``probs [..., S, A, M]`` on ``successors [S, A, M]``.
+        """
+        if self.kind == "tied":
+            # tied() gives factor[s, a] = a at every state
+            return (theta[..., self.factor[0], :] * self.mask[self.factor[0]])[..., None, :, :], self.targets[:, 0]
+        if self.kind == "per-sa":
+            return self.to_sparse(theta), self.targets[:, 0]
+        return self.to_sparse(theta), self.targets
+
     def from_transitions(self, transitions) -> np.ndarray:
         """Project a tensor onto the factors: ``θ`` ``[F, M]`` (averaged over tied pairs).
 
