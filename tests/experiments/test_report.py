@@ -115,9 +115,10 @@ def test_the_tally_names_finished_full_runs_with_or_without_claims(tmp_path):
     (sampling / "summary.json").write_text(json.dumps(summary))
     _folder(runs, "priors", "fast")
     _folder(runs, "lambda", "full", missing=("w/job2",))
+    _folder(runs, "coffee", "full", summary=False)  # under way: nothing assembled yet
     sentence = tally_sentence(find_runs([runs]))
     # the partial run's claims count, and the sentence says whose they are
-    assert sentence.startswith("2 of 4 claims hold in the full runs of nav, sampling (partial: lambda);")
+    assert sentence.startswith("2 of 4 claims hold in the full runs of nav, sampling (partial: coffee, lambda);")
     rest = sentence.split("not run in full yet: ")[1].split(", ")
     assert "priors" in rest and "lambda" not in rest and "nav" not in rest and "sampling" not in rest
 

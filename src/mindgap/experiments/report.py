@@ -299,12 +299,17 @@ def _between(text: str, start: str, end: str, block: str) -> str:
 def tally_sentence(runs: list[Run]) -> str:
     """``N of M claims hold in the full runs of …; not run in full yet: …`` (fast runs left out).
 
-    An experiment counts as run in full when a finished full-preset run of it is among ``runs``,
-    whether or not it decides claims by a rule (``sampling`` only describes its figure).
+    An experiment counts as run in full when a finished (assembled, no job missing) full-preset
+    run of it is among ``runs``, whether or not it decides claims by a rule (``sampling`` only
+    describes its figure); a full-preset run still under way is named as partial.
     """
     t = tally(runs)
     total = t["held"] + t["failed"] + t["undecided"]
-    full = [n for n in registry.NAMES if any(r.experiment == n and r.preset == "full" and not r.missing for r in runs)]
+    full = [
+        n
+        for n in registry.NAMES
+        if any(r.experiment == n and r.preset == "full" and r.summary and not r.missing for r in runs)
+    ]
     partial = [
         n for n in registry.NAMES if n not in full and any(r.experiment == n and r.preset == "full" for r in runs)
     ]
