@@ -190,6 +190,34 @@ def test_declining_consent_ends_the_study(coffee):
     assert "chose not to take part" in client.get(f"/p/{token}").text
 
 
+def test_a_refused_consent_or_questionnaire_redirects_back_and_keeps_the_answers_given(coffee):
+    study, store, client = coffee
+    token = store.participants()[0]["token"]
+    page = client.get(f"/p/{token}").text
+    r = client.post(f"/p/{token}/consent", data={"csrf": hidden(page, "csrf")}, follow_redirects=False)
+    assert r.status_code == 303 and r.headers["x-answer"] == "refused"  # Back and reload never resend it
+    page = client.get(r.headers["location"]).text
+    assert "Please say whether you agree to take part." in page and store.participants()[0]["consent_at"] is None
+    client.post(f"/p/{token}/consent", data={"csrf": hidden(page, "csrf"), "agree": "yes"})
+    page = client.get(f"/p/{token}").text
+    client.post(f"/p/{token}/instructions", data={"csrf": hidden(page, "csrf")})
+    page = client.get(f"/p/{token}").text
+    assert "A few questions first" in page
+    # q1 answered, q2 not: refused, q2 named, q1's answer kept on the page
+    r = client.post(f"/p/{token}/questionnaire", data={"csrf": hidden(page, "csrf"), "q1": "4"}, follow_redirects=False)
+    assert r.status_code == 303 and r.headers["x-answer"] == "refused"
+    page = client.get(r.headers["location"]).text
+    assert "Please answer every question (q2: choose" in page
+    assert re.search(r'name="q1" value="4" required checked', page)
+    assert not re.search(r'name="q2" value="\d" required checked', page)
+    assert store.questionnaire() == []
+    # an answer off the scale is no answer
+    r = client.post(f"/p/{token}/questionnaire", data={"csrf": hidden(page, "csrf"), "q1": "4", "q2": "99"})
+    assert "Please answer every question (q2: choose" in r.text and store.questionnaire() == []
+    r = client.post(f"/p/{token}/questionnaire", data={"csrf": hidden(page, "csrf"), "q1": "4", "q2": "2"})
+    assert {q["question"]: q["value"] for q in store.questionnaire()} == {"q1": 4, "q2": 2}
+
+
 def test_pages_carry_security_headers(coffee):
     study, store, client = coffee
     r = client.get(f"/p/{store.participants()[0]['token']}")

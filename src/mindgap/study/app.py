@@ -22,7 +22,9 @@ What is ours is the study logic:
 * **A refused answer** (no rating: the slider starts without a value and must be moved;
   a rating off the scale or its steps; an unknown choice; an answer faster than the
   study's minimum time) redirects back to the item (303, ``X-Answer: refused``), whose
-  page says why and keeps the chosen value, so Back and reload never resend the form.
+  page says why and keeps the chosen value, so Back and reload never resend the form. A
+  consent form without a choice and a questionnaire with a question unanswered are
+  refused the same way, the answers given kept.
 """
 
 from __future__ import annotations
@@ -232,6 +234,9 @@ def create_app(
         token = p["token"]
         ctx = dict(token=token, csrf=csrf("p:" + token), error=error)
         if s in ("declined", "consent", "instructions", "questionnaire"):
+            if kept and kept["code"] == s:  # a refused consent or questionnaire: why, and the answers given
+                ctx["error"] = kept["error"]
+                ctx["given"] = kept["given"]
             return page(request, f"{s}.html", status, **ctx)
         if s == "done":
             return page(request, "done.html", status, code=p["completion_code"], **ctx)
@@ -275,6 +280,19 @@ def create_app(
         kept = None
         if q.get("refused") in ("missing", "rating", "choice", "too-fast"):
             kept = {"code": q["refused"], "item": q.get("item"), "rating": q.get("rating"), "choice": q.get("choice")}
+        elif q.get("refused") == "consent":
+            kept = {"code": "consent", "error": "Please say whether you agree to take part.", "given": {}}
+        elif q.get("refused") == "questionnaire":
+            given = {}
+            for question in study.questionnaire:
+                v = q.get(question.id, "")
+                if v.isdigit() and question.scale[0] <= int(v) <= question.scale[1]:
+                    given[question.id] = int(v)
+            first = next((x for x in study.questionnaire if x.id not in given), None)
+            error = "Please answer every question."
+            if first is not None:
+                error = f"Please answer every question ({first.id}: choose {first.scale[0]}–{first.scale[1]})."
+            kept = {"code": "questionnaire", "error": error, "given": given}
         return show(request, who(token), kept=kept)
 
     async def form_of(request: Request, token: str):
@@ -297,6 +315,12 @@ def create_app(
         r.headers["X-Answer"] = "refused"
         return r
 
+    def refused_page(token: str, code: str, **given: str) -> Response:
+        """Post/redirect/get for a refused consent or questionnaire form: its page again, saying why."""
+        r = RedirectResponse(f"/p/{token}?{urlencode({'refused': code, **given})}", status_code=303)
+        r.headers["X-Answer"] = "refused"
+        return r
+
     @app.post("/p/{token}/consent")
     async def consent(request: Request, token: str):
         form, p = await form_of(request, token)
@@ -304,8 +328,8 @@ def create_app(
             await run_in_threadpool(store.mark, p["id"], "consent")
         elif form.get("agree") == "no":
             await run_in_threadpool(store.mark, p["id"], "declined")
-        else:
-            raise HTTPError(422, "Please choose", "Please say whether you agree to take part.")
+        else:  # post/redirect/get: the consent page again, saying why
+            return refused_page(token, "consent")
         return back(token)
 
     @app.post("/p/{token}/instructions")
@@ -323,18 +347,11 @@ def create_app(
             return back(token)
         answers = {}
         for q in study.questionnaire:
-            raw = form.get(q.id)
-            try:
-                v = int(str(raw))
-            except ValueError:
-                v = None
-            if v is None or not q.scale[0] <= v <= q.scale[1]:
-                return await run_in_threadpool(
-                    lambda: show(
-                        request, p, 422, f"Please answer every question ({q.id}: choose {q.scale[0]}–{q.scale[1]})."
-                    )
-                )
-            answers[q.id] = v
+            raw = str(form.get(q.id, ""))
+            if raw.isdigit() and q.scale[0] <= int(raw) <= q.scale[1]:
+                answers[q.id] = int(raw)
+        if len(answers) < len(study.questionnaire):  # post/redirect/get, keeping the answers given
+            return refused_page(token, "questionnaire", **{k: str(v) for k, v in answers.items()})
         await run_in_threadpool(store.save_questionnaire, p["id"], answers)
         return back(token)
 
