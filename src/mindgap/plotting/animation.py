@@ -5,6 +5,13 @@ MuJoCo's offscreen renderer for its envs), so a rollout becomes a short clip tha
 a study participant watches instead of reading a plot of 8-dimensional observations. Frames
 are thinned to at most ``max_frames`` and shrunk by ``scale`` to keep files small; Pillow
 writes the GIF (it ships with matplotlib).
+
+A segment shown to a study participant was collected earlier, so its frames are drawn again
+from its observations (:func:`observation_frames`): a MuJoCo env's state is its positions and
+velocities, which the observations hold when the env keeps every position in them
+(``exclude_current_positions_from_observation=False``, as mindgap's noisy hopper and cheetah
+do). Envs whose observations do not determine their state (Box2D's lander: its bodies'
+contacts and the terrain) cannot be drawn again from a segment.
 """
 
 from __future__ import annotations
@@ -43,6 +50,55 @@ def save_gif(path: Path, frames: list[np.ndarray], fps: float = 25.0, scale: flo
     images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 * step / fps), loop=0)
     atomic_write(path, buf.getvalue())
     return len(images)
+
+
+def observation_frames(world, observations) -> list[np.ndarray]:
+    """Frames of a gym world in each of ``observations`` ([T, d]) by setting its MuJoCo state from them.
+
+    Raises:
+        ValueError: the env is not a MuJoCo env, or its observations do not hold every
+            position and velocity (one line, naming the fix).
+    """
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    env, _ = world.make(0, render_mode="rgb_array")
+    try:
+        inner = env.unwrapped
+        obs = np.asarray(observations, np.float64)
+        nq, nv = _state_sizes(world, inner, obs.shape[-1])
+        if obs.ndim != 2:
+            raise ValueError(f"{world.name}: observations must be [T, d], got shape {obs.shape}")
+        frames = []
+        for o in obs:
+            inner.set_state(o[:nq], o[nq:])
+            frames.append(np.asarray(env.render()))
+        return frames
+    finally:
+        env.close()
+
+
+def check_observation_frames(world) -> None:
+    """Raise the one-line ValueError of :func:`observation_frames` now if ``world``'s segments cannot be drawn."""
+    env, obs = world.make(0)
+    try:
+        _state_sizes(world, env.unwrapped, obs.shape[-1])
+    finally:
+        env.close()
+
+
+def _state_sizes(world, inner, width: int) -> tuple[int, int]:
+    """(positions, velocities) of a MuJoCo env whose observations of ``width`` numbers are exactly its state."""
+    if not hasattr(inner, "set_state") or not hasattr(inner, "model"):
+        raise ValueError(
+            f"{world.name}: its segments cannot be drawn again from observations "
+            "(only MuJoCo envs, whose observations can hold their whole state)"
+        )
+    nq, nv = inner.model.nq, inner.model.nv
+    if width != nq + nv:
+        raise ValueError(
+            f"{world.name}: an observation of {width} numbers is not the state's {nq} positions and "
+            f"{nv} velocities (make it with exclude_current_positions_from_observation=False)"
+        )
+    return nq, nv
 
 
 _greedy = jax.jit(greedy_action)

@@ -32,11 +32,12 @@ import re
 from pathlib import Path
 
 PROTOCOLS = ("rating", "preference", "expectation")
-DOMAINS = ("coffee", "grid7", "terrain")
+DOMAINS = ("coffee", "grid7", "terrain", "gym")
 SOURCES = {
     "coffee": ("coffee-demos",),
     "grid7": ("random",),
     "terrain": ("random-pairs", "belief-pairs", "file", "live"),
+    "gym": ("live",),
 }
 RULES = ("lowest", "max", "min", "answer")
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
@@ -180,6 +181,11 @@ def parse_study(raw, source: str = "study", base_dir: str = ".") -> Study:
             fail("terrain studies compare segments: protocol preference or expectation")
         if not isinstance(domain.get("world"), str):
             fail("domain.world must name a terrain world (nav1, nav2, d1–d4) or a world file")
+    elif domain["name"] == "gym":
+        if protocol == "rating":
+            fail("gym studies compare segments: protocol preference or expectation")
+        if not isinstance(domain.get("env"), str) or not domain["env"].startswith("gym:"):
+            fail("domain.env must name a gymnasium env as gym:ID[,key=value...], e.g. gym:mindgap/NoisyHopper-v0")
     elif protocol != "rating":
         fail(f"domain {domain['name']} shows demonstrations to rate: protocol rating")
     if domain["name"] == "coffee":

@@ -56,6 +56,14 @@ def build_items(study: Study) -> list[Item]:
     """
     src = study.items["source"]
     if src == "live":
+        if study.domain["name"] == "gym":  # refuse an env that cannot be made or drawn before anyone is invited
+            from ..plotting.animation import check_observation_frames
+
+            world = load_study_world(study)
+            try:
+                check_observation_frames(world)
+            except ValueError as e:
+                raise StudyFileError(f"domain.env: {e}") from None
         return []
     if src == "coffee-demos":
         items = _coffee(study)
@@ -109,7 +117,16 @@ def _grid(study: Study) -> list[Item]:
 
 
 def load_study_world(study: Study):
-    """The terrain world a study names (a named world or a file relative to the study file)."""
+    """The world a study shows: a terrain world (a named world or a file relative to the study
+    file), or a gymnasium env (``domain.env``, ``gym:ID[,key=value...]``)."""
+    if study.domain["name"] == "gym":
+        from ..envs.interface import EnvError
+        from ..envs.resolve import resolve_env
+
+        try:
+            return resolve_env(study.domain["env"])
+        except EnvError as e:
+            raise StudyFileError(f"domain.env: {e}") from None
     from ..envs.terrain import NAMED_WORLDS, load_world
 
     name = study.domain["world"]

@@ -26,6 +26,12 @@ from .prefs_file import ANSWERS
 from .store import Store
 
 
+def _spec(name: str) -> tuple:
+    """A world's name with its ``key=value`` arguments in any order (``gym:ID,b=1,a=2`` = ``gym:ID,a=2,b=1``)."""
+    head, _, rest = name.partition(",")
+    return head, tuple(sorted(x.strip() for x in rest.split(",") if x.strip()))
+
+
 class StudyTeacher:
     """People answering through the study app (a :class:`~mindgap.teachers.host.HostTeacher`)."""
 
@@ -42,8 +48,8 @@ class StudyTeacher:
                 f"{db} holds study {study['name']!r}, which does not take live queries (items: {{source: live}})"
             )
         if world is not None:
-            want = study["domain"].get("world", "")
-            if want != world.name and Path(want).stem != world.name:
+            want = study["domain"].get("world") or study["domain"].get("env", "")
+            if _spec(want) != _spec(world.name) and Path(want).stem != world.name:
                 raise ValueError(f"{db} shows world {want!r}, the run trains on {world.name!r}")
         self.name = f"study:{db}"
         self.timeout, self.poll, self.progress = timeout, poll, progress

@@ -8,7 +8,11 @@
   heatmaps of :mod:`mindgap.plotting.heatmaps` show values, not paths);
 * terrain segments: the map of :mod:`mindgap.plotting.terrain` with the segment's path
   and, as small grey arrows, what the agent pushed for at each step (so an expectation
-  question can be judged), or an animated GIF (``animation: true`` in ``items``).
+  question can be judged), or an animated GIF (``animation: true`` in ``items``);
+* gymnasium segments (``domain: {name: gym, env: gym:ID}``): always an animated GIF, the env
+  drawing itself in each state of the segment
+  (:func:`mindgap.plotting.animation.observation_frames`: MuJoCo envs whose observations
+  hold their whole state).
 
 Matplotlib is not thread-safe, so drawing holds one lock; each picture is drawn once
 and written through a rename, then served from the cache folder. A cached file is named
@@ -65,7 +69,7 @@ class Renderer:
         return self._world_digest
 
     def ext(self) -> str:
-        return "gif" if self.study.items.get("animation") else "png"
+        return "gif" if self.study.items.get("animation") or self.study.domain["name"] == "gym" else "png"
 
     def parts(self, item: dict) -> tuple[tuple[str, str], ...]:
         """An item's pictures as ``(part, caption)``: a coffee demonstration's steps
@@ -108,6 +112,10 @@ class Renderer:
             save_coffee_step(tmp, d["states"][k], condition or "mobile", spilled)
         elif domain == "grid7":
             save_grid_demo(tmp, d["states"], d["size"])
+        elif domain == "gym":
+            from ..plotting.animation import observation_frames, save_gif
+
+            save_gif(tmp, observation_frames(self.world, gym_segment_states(d[part])), fps=GYM_FPS)
         else:
             seg = d[part]
             if out.suffix == ".gif":
@@ -117,6 +125,18 @@ class Renderer:
             else:
                 save_segment(tmp, self.world.params, seg, PART_COLOURS[part], part.upper())
         tmp.replace(out)
+
+
+GYM_FPS = 10.0
+"""Frames a second of a gymnasium segment's animation (slower than the envs' own 25–125 Hz, so a
+ten-step segment lasts about a second)."""
+
+
+def gym_segment_states(seg: dict) -> np.ndarray:
+    """The observations a segment passes through: its first, then each real step's next one ([n + 1, d])."""
+    obs, nxt, mask = (np.asarray(seg[k]) for k in ("obs", "next_obs", "mask"))
+    n = int(np.asarray(mask, bool).sum())
+    return np.concatenate([obs[:1], nxt[:n]]) if n else obs[:1]
 
 
 def step_captions(states, actions) -> list[str]:
