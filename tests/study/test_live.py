@@ -148,6 +148,25 @@ def test_pebble_learns_from_people_answering_in_the_study_app(tmp_path):
 
 
 @pytest.mark.slow
+def test_prefbias_learns_from_people_answering_in_the_study_app(tmp_path):
+    """PrefBias (§3.3) asks its queries through the running study, like PEBBLE; every answer is in its dataset."""
+    from mindgap.algorithms.prefbias import prefbias_config
+    from mindgap.prefbias import train as prefbias_train
+
+    (tmp_path / "easy.toml").write_text(EASY)
+    world = world_from_dict(__import__("tomllib").loads(EASY))
+    store, client = _live(tmp_path, world=str(tmp_path / "easy.toml"))
+    teacher = StudyTeacher(store.path, world, timeout=60, poll=0.05, progress=False)
+    cfg = prefbias_config("fast", explore_steps=250, queries=12, per_round=6)
+    with People(client, store, world.params):
+        res = prefbias_train(world, cfg, seeds=1, teacher=teacher, progress=False)
+    assert len(teacher.batches) == 2  # two rounds of 6 queries
+    assert store.live_counts() == {"open": 0, "answered": 12, "expired": 0}
+    assert int(np.asarray(res["carry"].prefs.count).sum()) == 12
+    assert [int(q) for _, _, _, q in res["curve"][-1:]] == [12]
+
+
+@pytest.mark.slow
 def test_the_host_path_gives_the_jitted_path_s_results(tmp_path):
     """With a deterministic simulated person, asking outside jit changes nothing."""
     world = world_from_dict(__import__("tomllib").loads(EASY))
