@@ -179,8 +179,9 @@ def train(
 
     Args:
         world: a :class:`~mindgap.envs.interface.World` whose env has ``reward`` and ``log_prob``.
-        person: the simulated person (:func:`~mindgap.algorithms.expected_policy.expectation_teacher`),
-            or a host teacher (people answering "which is more expected" through the study app).
+        person: the simulated person (:func:`~mindgap.algorithms.expected_policy.expectation_teacher`;
+            or any jittable teacher with ``answer`` and ``cfg``, e.g. the driving study's
+            :class:`~mindgap.teachers.drivers.CrowdTeacher`), or a host teacher (people answering "which is more expected" through the study app).
         person_name: how the run record names the person (``biased``, ``unbiased``).
 
     Returns:
@@ -190,7 +191,7 @@ def train(
     cfg.check()
     refuse_without_dynamics(world, "EPS")
     check_env(world.env, density=True, who="EPS", discrete_actions=True)
-    host = not isinstance(person, ExpectationTeacher)
+    host = not hasattr(person, "answer")  # a jittable person (one or a crowd) answers inside the program
     if host and cfg.surrogate == "exact":
         raise ValueError("the exact surrogate reads a simulated person's models; people cannot supply them")
     if host:
