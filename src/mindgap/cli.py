@@ -4,6 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--out DIR]
 mindgap reproduce nav|priors|sampling|eps|lambda [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
@@ -46,6 +47,8 @@ def _parser() -> argparse.ArgumentParser:
         "or path.py:factory[,key=value…] with a belief and an exact log_prob",
     )
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
+    r.add_argument("--sleet", type=float, help="driving: the road's sleet level, 0 (dry) to 1 (full sleet)")
+    r.add_argument("--importance", metavar="A,B,C,D", help="driving: the participants' mean importance answers (1-5)")
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
     r.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -166,6 +169,13 @@ def _reproduce(args) -> int:
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
+    for flag in ("sleet", "importance"):
+        if getattr(args, flag) is not None and args.name != "driving":
+            raise ValueError(f"--{flag} belongs to the driving study")
+    if args.name == "driving":
+        from .experiments import driving_cli
+
+        return driving_cli.reproduce(args)
     if args.name == "coffee":
         from .experiments import coffee_cli
 

@@ -13,7 +13,9 @@ for every seed at once (vmapped, in jitted chunks of environment steps):
    of them (``learn``) and the whole replay buffer is relabelled with the reward the learner
    now offers (``reward``) — and in between SAC on that reward.
 
-A teacher is a value: a jittable simulated person with ``answer(key, seg_a, seg_b) → (labels,
+A world declares its action space: on a :class:`~mindgap.envs.interface.Discrete` one the agent
+is discrete SAC (:mod:`~mindgap.algorithms.sac_discrete`) and the learners' networks read actions
+one-hot; the schedule is the same. A teacher is a value: a jittable simulated person with ``answer(key, seg_a, seg_b) → (labels,
 answered)`` (the round is then one compiled program), or a
 :class:`~mindgap.teachers.host.HostTeacher` — people through the study app — asked outside
 jit between the round's two compiled halves. A :class:`~mindgap.envs.gym_world.GymWorld` runs the same
@@ -43,8 +45,8 @@ from ..data.replay import relabel
 from ..envs.gym_world import GymWorld
 from ..envs.interface import Env, check_env
 from ..teachers.preference import PreferenceTeacher, TeacherConfig
-from .sac import SACConfig, sac_init
-from .sac_loop import LoopState, dims, evaluate, loop_init, run_chunk
+from .sac import SACConfig
+from .sac_loop import LoopState, agent_init, dims, evaluate, loop_init, run_chunk
 
 EXPLORATION = {"noise_color": 1.0, "entropy_bonus": 1.0}
 """How every learner's SAC explores by default (:attr:`Schedule.sac`: SAC, PEBBLE, DRLHP,
@@ -258,13 +260,13 @@ def host_answers(teacher, seg_a, seg_b, queries, per_round: int, budget: int):
     return jnp.asarray(labels), jnp.asarray(answered)
 
 
-@partial(jax.jit, static_argnames=("sac",))
-def reset_critic(carry: Carry, sac: SACConfig) -> Carry:
+@partial(jax.jit, static_argnames=("sac", "env"))
+def reset_critic(carry: Carry, sac: SACConfig, env: Env) -> Carry:
     """Re-initialise every seed's critic (PEBBLE, after pre-training)."""
 
     def one(c):
         key, k = jax.random.split(c.key)
-        fresh = sac_init(k, c.loop.replay.obs.shape[-1], c.loop.replay.act.shape[-1], sac)
+        fresh = agent_init(k, env, sac)
         state = c.loop.sac
         params = state.params._replace(critic=fresh.params.critic, target=fresh.params.critic)
         state = state._replace(params=params, critic_opt=fresh.critic_opt)
@@ -323,7 +325,7 @@ def preference_teacher(world, cfg, seeds: int, teacher, belief: str | None, *, w
     if not host and teacher not in ("biased", "true"):
         raise ValueError(f"teacher must be 'biased', 'true' or a host teacher, got {teacher!r}")
     if not host and cfg.method != "sac":
-        check_env(world.env, density=teacher == "biased", who=f"{who}'s simulated person")
+        check_env(world.env, density=teacher == "biased", who=f"{who}'s simulated person", discrete_actions=True)
         if world.env.reward is None:
             raise ValueError(f"{who}'s simulated person needs the env's reward; this env has none")
     meta = run_record(world, seeds, teacher=teacher.name if host else teacher, belief=belief)
@@ -358,7 +360,7 @@ def run(
             world, learner, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle
         )
     cfg.check()
-    check_env(world.env, who=cfg.method)
+    check_env(world.env, who=cfg.method, discrete_actions=True)
     env, w = world.env, WorldArgs(world.params, world.obs_units(), oracle)
     carry = init_carry(jax.random.split(rng.key(cfg.seed), seeds), learner, env, world.params, cfg)
 
@@ -437,7 +439,7 @@ def drive(
             if due and int(carry.queries.min()) < cfg.queries:
                 carry = one_round(carry)
             if step == first_feedback and cfg.reset_critic:
-                carry = reset_critic(carry, learner.agent_sac(cfg))
+                carry = reset_critic(carry, learner.agent_sac(cfg), env)
         carry = chunk(carry, phase, step)
         step += cfg.chunk
         if step % cfg.eval_every == 0 or step == cfg.total_steps:

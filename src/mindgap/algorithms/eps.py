@@ -45,7 +45,7 @@ import jax.numpy as jnp
 
 from ..data.fingerprint import fingerprint
 from ..envs.gym_world import refuse_without_dynamics
-from ..envs.interface import Env, check_env
+from ..envs.interface import Env, action_width, check_env
 from ..feedback.queries import select_queries
 from ..models.gaussian_dynamics import DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
 from ..models.reward_ensemble import RewardState, preference_probs, reward_init, train_reward
@@ -61,6 +61,7 @@ from .eps_reward import (
     normalised_u,
     u_norm_from_replay,
 )
+from .sac_loop import n_actions
 
 
 class EPSModel(NamedTuple):
@@ -107,7 +108,7 @@ def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig) -> EPSRe
 
 
 def _init(key, env: Env, cfg: EPSConfig):
-    d, a = env.observation_space.dim, env.action_space.dim
+    d, a = env.observation_space.dim, action_width(env.action_space)  # a discrete action enters one-hot
     k_loop, k_rew, k_dyn, k_run = jax.random.split(key, 4)
     norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))  # replaced at the first round
     model = EPSModel(
@@ -125,8 +126,9 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
     dyn = m.dynamics
     if cfg.method == "eps":
         valid = jnp.arange(buf.capacity) < buf.size
-        norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid)
-        fresh = dynamics_init(k_fresh, buf.obs.shape[-1], buf.act.shape[-1], cfg.dynamics, norm)
+        n = n_actions(env) or None  # a discrete action enters T_A one-hot
+        norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid, act_width=n)
+        fresh = dynamics_init(k_fresh, buf.obs.shape[-1], action_width(env.action_space), cfg.dynamics, norm)
         start = _where(m.started, dyn, fresh)
         dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, cfg.dynamics, init=start)
     seg_a = seg_b = None
@@ -177,8 +179,9 @@ def train(
 
     Args:
         world: a :class:`~mindgap.envs.interface.World` whose env has ``reward`` and ``log_prob``.
-        person: the simulated person (:func:`~mindgap.algorithms.expected_policy.expectation_teacher`),
-            or a host teacher (people answering "which is more expected" through the study app).
+        person: the simulated person (:func:`~mindgap.algorithms.expected_policy.expectation_teacher`;
+            or any jittable teacher with ``answer`` and ``cfg``, e.g. the driving study's
+            :class:`~mindgap.teachers.drivers.CrowdTeacher`), or a host teacher (people answering "which is more expected" through the study app).
         person_name: how the run record names the person (``biased``, ``unbiased``).
 
     Returns:
@@ -187,8 +190,8 @@ def train(
     """
     cfg.check()
     refuse_without_dynamics(world, "EPS")
-    check_env(world.env, density=True, who="EPS")
-    host = not isinstance(person, ExpectationTeacher)
+    check_env(world.env, density=True, who="EPS", discrete_actions=True)
+    host = not hasattr(person, "answer")  # a jittable person (one or a crowd) answers inside the program
     if host and cfg.surrogate == "exact":
         raise ValueError("the exact surrogate reads a simulated person's models; people cannot supply them")
     if host:

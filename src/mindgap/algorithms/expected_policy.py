@@ -37,10 +37,10 @@ from ..checkpoint import load_pytree, save_pytree
 from ..data.fingerprint import identity_leaves
 from ..envs.gym_world import GymWorld, gym_world_from_spec, refuse_without_dynamics
 from ..envs.interface import Env, World
-from ..models.mlp import Params, init_mlp
+from ..models.mlp import Params
 from ..teachers.expectation import ExpectationTeacher
 from .sac import SACConfig
-from .sac_loop import dims, evaluate, loop_init, run_chunk
+from .sac_loop import agent_init, evaluate, loop_init, run_chunk
 
 CACHE_VERSION = 1
 """Part of every cache key: raise it when the stored format or the training changes meaning."""
@@ -92,8 +92,7 @@ def cache_key(belief_params, cfg: ExpectedPolicyConfig, salt=None) -> str:
 
 
 def _actor_template(env: Env, cfg: ExpectedPolicyConfig) -> Params:
-    obs_dim, act_dim = dims(env)
-    return init_mlp(jax.random.key(0), (obs_dim, *cfg.sac.hidden, 2 * act_dim))
+    return agent_init(jax.random.key(0), env, cfg.sac).params.actor  # a Gaussian or a categorical actor
 
 
 def train_expected_policy(world: World, belief_params, cfg: ExpectedPolicyConfig) -> tuple[Params, np.ndarray]:

@@ -28,7 +28,7 @@ from pathlib import Path
 import jax
 
 from ..envs.gym_world import NO_BELIEF, GymWorld
-from ..envs.interface import Env
+from ..envs.interface import Env, action_width
 from ..feedback.queries import SAMPLERS, select_queries
 from ..models.reward_ensemble import (
     ABSORBING_STATES,
@@ -126,7 +126,7 @@ def fast_config(method: str, **overrides) -> PbRLConfig:
 
 
 def _init(key, env: Env, cfg: PbRLConfig):
-    obs_dim, act_dim = env.observation_space.dim, env.action_space.dim
+    obs_dim, act_dim = env.observation_space.dim, action_width(env.action_space)  # a discrete action enters one-hot
     k_loop, k_rew, k_run = jax.random.split(key, 3)
     return reward_init(k_rew, obs_dim, act_dim, cfg.reward, absorbing=cfg.absorbing_heads()), k_loop, k_run
 

@@ -15,6 +15,11 @@ A learned reward with an absorbing state (Kostrikov et al. 2019; PEBBLE/DRLHP wi
 bonus ``γ r_abs / (1 − γ)`` (:func:`~mindgap.data.replay.terminal_bonus`), the value of
 the state the episode ends in, so arriving at the goal is not worth less than hovering
 next to it. Other reward functions keep their own signature and need nothing new.
+
+A world whose action space is :class:`~mindgap.envs.interface.Discrete` runs discrete SAC
+(:mod:`~mindgap.algorithms.sac_discrete`, Christodoulou 2019) in the same loop: the env's
+declared space picks the networks, the draw of an action and the update; actions are stored
+as float indices ``[1]``, so the buffer, relabelling and evaluation are shared.
 """
 
 from __future__ import annotations
@@ -27,10 +32,12 @@ import jax.numpy as jnp
 
 from ..data.batch import Batch
 from ..data.replay import Replay, replay_add, replay_init, replay_sample, terminal_bonus
-from ..envs.interface import Env
+from ..envs.interface import Discrete, Env
 from ..models.actor import greedy_action, sample_action
+from ..models.categorical import greedy_categorical, sample_categorical
 from .colored_noise import colored_noise
 from .sac import SACConfig, SACState, sac_init, sac_update
+from .sac_discrete import discrete_sac_init, discrete_sac_update
 
 PHASES = ("random", "explore", "train")
 BONUS_POOL = 256  # buffer states the training-time state-entropy bonus measures distances to
@@ -53,18 +60,31 @@ def dims(env: Env) -> tuple[int, int]:
     return env.observation_space.dim, env.action_space.dim
 
 
+def n_actions(env: Env) -> int:
+    """The number of actions of a :class:`~mindgap.envs.interface.Discrete` action space; 0 for a Box."""
+    return env.action_space.n if isinstance(env.action_space, Discrete) else 0
+
+
+def agent_init(key: jax.Array, env: Env, cfg: SACConfig) -> SACState:
+    """Fresh SAC networks for ``env``'s spaces: discrete SAC on a Discrete action space."""
+    obs_dim, act_dim = dims(env)
+    n = n_actions(env)
+    return discrete_sac_init(key, obs_dim, n, cfg) if n else sac_init(key, obs_dim, act_dim, cfg)
+
+
 def loop_init(key: jax.Array, env: Env, world_params, cfg: SACConfig, capacity: int, start=None) -> LoopState:
     """A seed's fresh loop; its world state ``env.reset``'s, or ``start(key)``'s for a world stepped elsewhere."""
     k_sac, k_env, k_run = jax.random.split(key, 3)
     obs_dim, act_dim = dims(env)
+    coloured = cfg.noise_color > 0 and not n_actions(env)
     return LoopState(
-        sac_init(k_sac, obs_dim, act_dim, cfg),
+        agent_init(k_sac, env, cfg),
         replay_init(capacity, obs_dim, act_dim),
         env.reset(k_env, world_params) if start is None else start(k_env),
         jnp.zeros((), jnp.int32),
         k_run,
         jnp.zeros((), jnp.int32),
-        jnp.zeros((cfg.noise_length if cfg.noise_color > 0 else 0, act_dim), jnp.float32),
+        jnp.zeros((cfg.noise_length if coloured else 0, act_dim), jnp.float32),
     )
 
 
@@ -135,17 +155,23 @@ def run_chunk(
     """
     if phase not in PHASES:
         raise ValueError(f"phase must be one of {PHASES}, got {phase!r}")
+    n = n_actions(env)
 
     def body(ls: LoopState, _):
         key, k_act, k_env, k_reset, k_upd = jax.random.split(ls.key, 5)
         obs = env.observe(ls.env, world_params)
         noise, eps = ls.noise, None  # eps None: white noise
-        if cfg.noise_color > 0:  # a fresh sequence at each episode start (and every noise_length steps)
+        if cfg.noise_color > 0 and not n:  # a fresh sequence at each episode start (and every noise_length steps)
             i = ls.t % cfg.noise_length
             fresh = colored_noise(jax.random.fold_in(k_act, 1), cfg.noise_color, cfg.noise_length, noise.shape[1])
             noise = jnp.where(i == 0, fresh, noise)
             eps = noise[i]
-        if phase != "random":
+        if n:  # discrete: a draw of the categorical policy, or a uniform index
+            if phase != "random":
+                act = sample_categorical(ls.sac.params.actor, obs, k_act)[0]
+            else:
+                act = jax.random.randint(k_act, (1,), 0, n).astype(jnp.float32)
+        elif phase != "random":
             act = sample_action(ls.sac.params.actor, obs, k_act, eps)[0]
         elif eps is None:
             act = jax.random.uniform(k_act, (noise.shape[1],), minval=-1.0, maxval=1.0)
@@ -165,7 +191,7 @@ def run_chunk(
         state = jax.tree.map(lambda a, b: jnp.where(done, a, b), env.reset(k_reset, world_params), out.state)
         sac = ls.sac
         if phase != "random":
-            sac = sac_updates(sac, replay, k_upd, ls.steps, cfg, phase, knn)
+            sac = sac_updates(sac, replay, k_upd, ls.steps, cfg, phase, knn, discrete=bool(n))
         t = jnp.where(done, 0, ls.t + 1)
         return LoopState(sac, replay, state, t, key, ls.steps + 1, noise), None
 
@@ -173,8 +199,11 @@ def run_chunk(
     return ls
 
 
-def sac_updates(sac: SACState, replay: Replay, key: jax.Array, steps, cfg: SACConfig, phase: str, knn: int) -> SACState:
-    """``cfg.utd`` SAC updates on minibatches of ``replay`` (a ``lax.scan``), after ``steps`` environment steps.
+def sac_updates(
+    sac: SACState, replay: Replay, key: jax.Array, steps, cfg: SACConfig, phase: str, knn: int, discrete: bool = False
+) -> SACState:
+    """``cfg.utd`` SAC updates on minibatches of ``replay`` (a ``lax.scan``), after ``steps`` environment steps;
+    discrete SAC's updates with ``discrete``.
 
     In the ``explore`` phase on PEBBLE's state-entropy reward (one step, no n-step sums); in
     ``train`` on the stored reward with n-step targets and, with ``cfg.entropy_bonus``, the
@@ -192,7 +221,7 @@ def sac_updates(sac: SACState, replay: Replay, key: jax.Array, steps, cfg: SACCo
             if cfg.entropy_bonus > 0:  # on the first step of an n-step target
                 pool = replay_sample(replay, k_pool, BONUS_POOL).next_obs
                 batch = batch._replace(reward=batch.reward + novelty_bonus(batch, pool, knn, bonus_weight(cfg, steps)))
-        return sac_update(sac, batch, k_sac, cfg)[0], None
+        return (discrete_sac_update if discrete else sac_update)(sac, batch, k_sac, cfg)[0], None
 
     return jax.lax.scan(update, sac, jax.random.split(key, cfg.utd))[0]
 
@@ -201,13 +230,19 @@ def _greedy(actor, obs):
     return greedy_action(actor, obs)
 
 
+def greedy_policy(env: Env):
+    """The deterministic policy ``(actor, obs) → action`` evaluation uses on ``env``: tanh of the
+    Gaussian's mean, or the most probable of a discrete space's actions."""
+    return greedy_categorical if n_actions(env) else _greedy
+
+
 def evaluate(key: jax.Array, env: Env, actor, world_params, episodes: int, horizon: int):
     """Greedy-policy rollouts under the world's true reward.
 
     Returns:
         (returns [episodes], observations [episodes, T+1, d], alive [episodes, T]).
     """
-    obs, rew, alive = rollouts(key, env, world_params, _greedy, actor, episodes, horizon)
+    obs, rew, alive = rollouts(key, env, world_params, greedy_policy(env), actor, episodes, horizon)
     return rew.sum(-1), obs, alive
 
 

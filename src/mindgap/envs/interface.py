@@ -15,7 +15,9 @@ rewards) in a params pytree passed alongside:
   *its own* params — a belief is the same world with other params.
 
 Continuous actions are in [−1, 1]^a (a tanh policy's range); a world scales them to its own
-units inside ``step``. The learners reset an episode when ``step`` reports it terminated or
+units inside ``step``. A discrete action reaches ``step`` (and ``reward``, ``log_prob``) as
+a float vector ``[1]`` holding its index, as the learners store it; the learners' networks
+see it one-hot (:func:`action_width` numbers). The learners reset an episode when ``step`` reports it terminated or
 truncated, and count the episode's steps themselves.
 
 A :class:`World` is an Env with its true params, its named beliefs and its horizon: what a
@@ -69,10 +71,17 @@ class Discrete:
 
     @property
     def dim(self) -> int:
+        """The numbers a stored action takes: one, the index."""
         return 1
 
 
 Space = Box | Discrete
+
+
+def action_width(space: Space) -> int:
+    """How many numbers a network that takes an action as input reads: a Box's dimension, or a
+    Discrete space's number of actions (the action one-hot)."""
+    return space.n if isinstance(space, Discrete) else space.dim
 
 
 @dataclasses.dataclass(frozen=True)
@@ -92,11 +101,19 @@ class EnvError(ValueError):
     """An environment that does not follow the interface, or that a learner cannot handle."""
 
 
-def check_env(env: Env, *, continuous_actions: bool = True, density: bool = False, who: str = "this learner") -> None:
+def check_env(
+    env: Env,
+    *,
+    continuous_actions: bool = True,
+    density: bool = False,
+    who: str = "this learner",
+    discrete_actions: bool = False,
+) -> None:
     """Refuse, with one line naming the problem, an env that ``who`` cannot run on.
 
     Args:
         continuous_actions: the learner needs a :class:`Box` action space in [−1, 1].
+        discrete_actions: the learner also runs on a :class:`Discrete` space of at least two actions.
         density: the learner (or its simulated person) needs ``reward`` and ``log_prob``.
     """
     if not isinstance(env, Env):
@@ -108,7 +125,10 @@ def check_env(env: Env, *, continuous_actions: bool = True, density: bool = Fals
     if not isinstance(obs, Box) or len(obs.shape) != 1:
         raise EnvError(f"{who} needs a flat Box observation space, got {obs}")
     act = env.action_space
-    if continuous_actions:
+    if discrete_actions and isinstance(act, Discrete):
+        if act.n < 2:
+            raise EnvError(f"{who} needs at least two discrete actions, got {act.n}")
+    elif continuous_actions:
         if not isinstance(act, Box) or len(act.shape) != 1:
             raise EnvError(f"{who} needs a continuous (Box) action space, got {act}")
         if (act.low, act.high) != (-1.0, 1.0):

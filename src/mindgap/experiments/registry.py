@@ -23,6 +23,7 @@ MODULES = {
     "sampling": "prefbias_sampling",
     "eps": "eps_table",
     "lambda": "eps_lambda",
+    "driving": "driving",
 }
 """Experiment name → module under :mod:`mindgap.experiments` (each has ``preset(name)``)."""
 
@@ -32,6 +33,7 @@ NAMES = tuple(MODULES)
 _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
+    "driving": ("seeds", "sleet", "importance"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -73,6 +75,10 @@ def command(name: str, config, out: str | Path) -> str:
         words += ["--seeds", str(cfg["seeds"])]
     if name == "coffee" and cfg.get("participants") != ref.get("participants"):
         words += ["--participants", str(cfg["participants"])]
+    if name == "driving" and cfg.get("sleet") != ref.get("sleet"):
+        words += ["--sleet", f"{cfg['sleet']:g}"]
+    if name == "driving" and cfg.get("importance") != ref.get("importance"):
+        words += ["--importance", ",".join(f"{v:g}" for v in cfg["importance"])]
     worlds = cfg.get("worlds")
     if "worlds" in options(name) and worlds is not None and list(worlds) != list(ref.get("worlds") or []):
         if any("," in w for w in worlds):

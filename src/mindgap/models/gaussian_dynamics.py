@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from .categorical import action_input
 from .mlp import Params, init_mlp, mlp
 
 
@@ -90,8 +91,15 @@ def dynamics_sizes(obs_dim: int, act_dim: int, hidden: tuple[int, ...], stay: bo
     return (obs_dim + act_dim, *hidden, 2 * obs_dim + int(stay))
 
 
-def fit_norm(obs: jax.Array, act: jax.Array, next_obs: jax.Array, valid: jax.Array) -> Norm:
-    """Mean and spread of the inputs and of the displacement over the ``valid`` rows ([N, ·], [N])."""
+def fit_norm(
+    obs: jax.Array, act: jax.Array, next_obs: jax.Array, valid: jax.Array, act_width: int | None = None
+) -> Norm:
+    """Mean and spread of the inputs and of the displacement over the ``valid`` rows ([N, ·], [N]).
+
+    ``act_width``: the number of actions of a discrete space whose stored indices ``act [N, 1]``
+    enter one-hot (:func:`~mindgap.models.categorical.action_input`); None for continuous actions."""
+    if act_width is not None:
+        act = action_input(act, act_width)
     w = valid.astype(obs.dtype)[:, None]
     n = jnp.maximum(w.sum(), 1.0)
 
@@ -106,6 +114,8 @@ def fit_norm(obs: jax.Array, act: jax.Array, next_obs: jax.Array, valid: jax.Arr
 
 
 def normalise_input(norm: Norm, obs: jax.Array, act: jax.Array) -> jax.Array:
+    """The network's input: (s, a) standardised; a discrete action one-hot (``norm`` is that wide)."""
+    act = action_input(act, norm.in_mean.shape[-1] - obs.shape[-1])
     return (jnp.concatenate([obs, act], -1) - norm.in_mean) / norm.in_std
 
 

@@ -51,6 +51,7 @@ import optax
 
 from ..data.prefs import PrefData
 from ..data.segments import Segments, absorbed_steps, terminal_obs
+from .categorical import action_input
 from .mlp import Params, init_stack, mlp
 
 
@@ -167,8 +168,12 @@ def _net(params) -> Params:
 
 
 def member_rewards(params: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
-    """Every member's reward. obs [..., d], act [..., a] → [E, ...]."""
-    x = jnp.concatenate([obs, act], axis=-1)
+    """Every member's reward. obs [..., d], act [..., a] → [E, ...].
+
+    A discrete action (stored as its index) enters one-hot: the members were made for
+    ``obs_dim + n`` inputs (:func:`~mindgap.models.categorical.action_input`)."""
+    width = _net(params)[0][0].shape[-2] - obs.shape[-1]
+    x = jnp.concatenate([obs, action_input(act, width)], axis=-1)
     return jax.vmap(lambda p: soft_bound(mlp(p, x)[..., 0]))(_net(params))
 
 

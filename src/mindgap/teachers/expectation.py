@@ -21,6 +21,9 @@ Choices:
 * π_H is the SAC policy of :mod:`~mindgap.algorithms.expected_policy`; its density is over
   actions in (−1, 1)^a, the tanh Jacobian included, so that u_H and SAC's policy entropy
   (also over squashed actions) are measured alike and their Jacobian terms cancel in Eq. 4.6.
+  On a world with a :class:`~mindgap.envs.interface.Discrete` action space π_H is a discrete
+  SAC policy and log π_H the log-probability of the action taken
+  (:func:`~mindgap.models.categorical.categorical_log_prob`).
 * ``cfg.log_t_floor`` floors each of the two terms per step, so that one step the person
   finds (nearly) impossible cannot decide a comparison alone.
 * ``cfg.use_belief`` does not apply: an expectation is always judged under a model of the
@@ -38,8 +41,9 @@ import jax
 import jax.numpy as jnp
 
 from ..data.segments import Segments
-from ..envs.interface import Env
+from ..envs.interface import Discrete, Env
 from ..models.actor import actor_dist
+from ..models.categorical import categorical_log_prob
 from ..models.mlp import Params
 from ..models.squashed import squashed_log_prob
 from .preference import TeacherConfig, discounted_sum, labels_from_scores
@@ -68,8 +72,11 @@ class ExpectationTeacher:
         return answer(key, seg_a, seg_b, self, self.cfg)
 
 
-def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
-    """log π_H(a|s) of the person's expected policy (a tanh-Gaussian density over actions): [..., ·] → [...]."""
+def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array, discrete: bool = False) -> jax.Array:
+    """log π_H(a|s) of the person's expected policy (a tanh-Gaussian density over actions; with
+    ``discrete`` a categorical policy's log-probability of the action index): [..., ·] → [...]."""
+    if discrete:
+        return categorical_log_prob(actor, obs, act)
     mean, log_std = actor_dist(actor, obs)
     return squashed_log_prob(mean, log_std, act)
 
@@ -77,9 +84,11 @@ def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array) -> jax.Arra
 def step_log_likelihood(teacher: ExpectationTeacher, obs, act, next_obs, floor: float) -> jax.Array:
     """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, next_obs [..., d], act [..., a] → [...]."""
 
+    discrete = isinstance(teacher.env.action_space, Discrete)
+
     def one(o, a, o2):
         log_t = jnp.maximum(teacher.env.log_prob(o, a, o2, teacher.belief), floor)
-        log_pi = jnp.maximum(expected_log_prob(teacher.policy, o, a), floor)
+        log_pi = jnp.maximum(expected_log_prob(teacher.policy, o, a, discrete), floor)
         return log_t + log_pi
 
     batch = obs.shape[:-1]

@@ -1,0 +1,494 @@
+"""Experiment ``driving``: EPS vs SAC vs DRLHP on the sleety highway, rated by new simulated participants
+(dissertation §4.4.2, Table 5, Figs. 32–36).
+
+The study's two phases with simulated participants (:mod:`~mindgap.teachers.drivers`):
+
+* **training** — recruits answer Fig. 32's importance questions and the bias-validation
+  question; a sanity item (a collision) drops the inattentive; r_A is the map of the valid
+  participants' average answers; each valid participant's expected policy π_H is discrete SAC
+  for their own reward in the world as they believe it (one program vmapped over them).
+  EPS (λ = 2.0, Algorithm 3), DRLHP (the learned u_H alone, §4.4.1.1) and SAC (on r_A) train
+  on the true, sleety world with discrete SAC (:mod:`~mindgap.algorithms.sac_discrete`);
+  EPS and DRLHP ask the participants "which is more expected?" (one participant per query);
+* **testing** — *new* participants, recruited the same way, rate 1–10 the greedy rollouts of
+  every method's seeds (and the collision of the sanity item, which must come lowest).
+
+Jobs, in a :class:`~._runfolder.RunFolder` (finished ones are read back, an interrupted
+learner resumes from its engine checkpoint): ``driving/people``, ``driving/sac``,
+``driving/drlhp``, ``driving/eps`` (each vmaps its seeds), ``driving/testing``.
+
+Measured per method, over seeds, on ``rollouts`` greedy episodes per seed in the sleety
+world (:func:`behaviour`): return under r_A (Table 5), collision rate, the first lane change
+(decisions after the front car starts braking; share of episodes with one), whether the car
+braked before it, and the smallest bumper gap to the front car while in its lane.
+Outputs: ``results.csv``, ``participants.csv``, ``ratings.csv``, ``curves.csv``,
+``table.md``, ``summary.json``, ``frames_METHOD.png`` (Figs. 34–36: three characteristic
+moments drawn by the highway-env version) and ``episode_METHOD.gif``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import rng
+from ..algorithms import eps as eps_alg
+from ..algorithms import pbrl
+from ..algorithms.eps_config import EPSConfig, eps_config
+from ..algorithms.expected_policy import ExpectedPolicyConfig
+from ..algorithms.sac import SACConfig
+from ..algorithms.sac_loop import agent_init, greedy_policy, loop_init, rollouts, run_chunk
+from ..checkpoint import load_pytree, save_pytree
+from ..envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
+from ..envs.driving.params import LENGTH, SLOWER
+from ..envs.driving.world import DIST_SCALE, EGO_OBS
+from ..teachers import drivers as dv
+from ..teachers.preference import TeacherConfig
+from . import prefbias_common as pc
+from ._runfolder import RunFolder, to_jsonable, write_csv
+
+METHODS = ("eps", "sac", "drlhp")
+LABELS = {"eps": "EPS", "sac": "SAC", "drlhp": "DRLHP"}
+PAPER = {"eps": (7.6, 11.0), "sac": (5.0, 11.9), "drlhp": (5.9, 9.6)}
+"""Table 5: (average rating, average return) of each method in the study."""
+WORLD = "driving"
+
+
+@dataclasses.dataclass(frozen=True)
+class DrivingConfig:
+    """What ``mindgap reproduce driving`` runs."""
+
+    sleet: float = 1.0
+    """The sleet level of the road the agents drive on (0 dry … 1 full sleet)."""
+    importance: tuple[float, ...] = STUDY_IMPORTANCE
+    """The population's mean importance answers (Fig. 32's averages)."""
+    seeds: int = 5
+    participants: int = 14
+    """Valid participants of the training phase (14 in the study)."""
+    raters: int = 15
+    """Valid participants of the testing phase (15 in the study)."""
+    population: dv.DriverPopulation = dv.DriverPopulation()
+    teacher: TeacherConfig = TeacherConfig()
+    """How a participant answers a query (Bradley–Terry, β = 1)."""
+    eps: EPSConfig = dataclasses.field(default_factory=lambda: _eps("full"))
+    """EPS's configuration (λ = 2.0; DRLHP is the same with ``method="drlhp"``)."""
+    person: ExpectedPolicyConfig = ExpectedPolicyConfig(
+        total_steps=20_000, chunk=1000, seeds=1, sac=SACConfig(hidden=(64, 64), learning_starts=2000)
+    )
+    """How each participant's π_H is trained (discrete SAC in their belief, one seed each)."""
+    rollouts: int = 20
+    """Greedy episodes per seed measured in the sleety world."""
+    shown: int = 2
+    """Greedy episodes per seed shown to each rater."""
+
+    def __post_init__(self):
+        dv.check_sleet_level(self.sleet)
+        importance_weights(self.importance)  # one line for a rating outside [1, 5]
+        for name in ("seeds", "participants", "raters", "rollouts", "shown"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.shown > self.rollouts:
+            raise ValueError("shown must not exceed rollouts")
+
+
+def _eps(preset: str) -> EPSConfig:
+    """EPS on the driving world: the preset's schedule with 5-step segments (a third of an episode)."""
+    if preset == "full":
+        return eps_config("full", total_steps=30_000, queries=400, per_round=40, segment=5, lam=2.0)
+    return eps_config("fast", segment=5, lam=2.0)
+
+
+def preset(name: str) -> DrivingConfig:
+    """``full`` (5 seeds, 30 000 steps, 400 queries, 14 + 15 participants) or ``fast`` (1 seed, 1500 steps,
+    30 queries, 4 + 4 participants, a tiny π_H: a dry run and the tests' preset, not results)."""
+    if name == "full":
+        return DrivingConfig()
+    if name == "fast":
+        return DrivingConfig(
+            seeds=1,
+            participants=4,
+            raters=4,
+            eps=_eps("fast"),
+            person=ExpectedPolicyConfig(
+                total_steps=500, chunk=250, seeds=1, sac=SACConfig(hidden=(16,), batch_size=32, learning_starts=250)
+            ),
+            rollouts=4,
+            shown=1,
+        )
+    raise ValueError(f"unknown preset {name!r}: use 'fast' or 'full'")
+
+
+def jobs(cfg: DrivingConfig) -> list[pc.Job]:
+    sac = _sac_cfg(cfg)
+    out = [pc.Job(f"{WORLD}/people", WORLD, "people", "participants", cfg.population, {})]
+    out.append(pc.Job(f"{WORLD}/sac", WORLD, "sac", "SAC", sac, {}))
+    out.append(pc.Job(f"{WORLD}/drlhp", WORLD, "drlhp", "DRLHP", dataclasses.replace(cfg.eps, method="drlhp"), {}))
+    out.append(
+        pc.Job(f"{WORLD}/eps", WORLD, "eps", "EPS", dataclasses.replace(cfg.eps, method="eps"), {"lam": cfg.eps.lam})
+    )
+    out.append(pc.Job(f"{WORLD}/testing", WORLD, "testing", "testing phase", cfg.raters, {}))
+    return out
+
+
+def _sac_cfg(cfg: DrivingConfig) -> pbrl.PbRLConfig:
+    names = ("total_steps", "chunk", "eval_every", "eval_episodes", "sac", "seed")
+    return pbrl.method_config("sac", **{n: getattr(cfg.eps, n) for n in names})
+
+
+def run(cfg: DrivingConfig, out: Path, *, fresh=False, progress=True, assemble_only=False, only=None) -> dict:
+    """Run (or resume) the experiment in ``out``; write its files; return the summary."""
+    from . import registry
+
+    out = Path(out)
+    everything = jobs(cfg)
+    todo = pc.select_job(everything, only, "driving") if only else everything
+    if only and only != f"{WORLD}/people":
+        todo = [everything[0]] + [j for j in todo if j.key != f"{WORLD}/people"]
+    if only == f"{WORLD}/testing":
+        todo = everything
+    folder = RunFolder(out, cfg, fresh=fresh)
+    rerun = registry.command("driving", cfg, out)
+    records = pc.run_jobs(
+        folder, todo, cfg.seeds, fresh=fresh, progress=progress, assemble_only=assemble_only,
+        compute=_compute(cfg), rerun=rerun,
+    )  # fmt: skip
+    folder.write_progress("driving", [j.key for j in everything], rerun)
+    if only:
+        return {"job": records[only]}
+    if not any(r["method"] in METHODS for r in records.values()):
+        raise RuntimeError(f"{out} has no finished learner jobs to assemble")
+    summary = write_outputs(cfg, out, records)
+    summary["missing_jobs"] = len(everything) - len(records)
+    return summary
+
+
+# ---------------------------------------------------------------------------------------
+# the jobs
+
+
+def world_of(cfg: DrivingConfig, weights=None):
+    """The sleety world, r_A weighted by ``weights`` (the engineered reward) when given."""
+    if weights is None:
+        return make_world(sleet=cfg.sleet)
+    return make_world(sleet=cfg.sleet, weights=tuple(round(float(w), 6) for w in weights))
+
+
+def _compute(cfg: DrivingConfig):
+    def compute(folder: RunFolder, job: pc.Job, seeds: int, *, fresh: bool, progress: bool) -> dict:
+        if job.method == "people":
+            return people_record(folder, cfg)
+        people = folder.done(f"{WORLD}/people")
+        world = world_of(cfg, people["engineered_weights"])
+        if job.method == "testing":
+            return testing_record(folder, cfg, world, people)
+        res = train(folder, cfg, world, people, job, seeds, fresh=fresh, progress=progress)
+        save_pytree(_actor_path(folder, job.key), res["carry"].loop.sac.params.actor)
+        actors = res["carry"].loop.sac.params.actor
+        return learner_record(cfg, world, actors, res)
+
+    return compute
+
+
+def train(folder, cfg: DrivingConfig, world, people: dict, job: pc.Job, seeds: int, *, fresh, progress) -> dict:
+    """Train one learner's seeds through the engine (the participants answer EPS's and DRLHP's queries)."""
+    kw = dict(seeds=seeds, out=pc.job_dir(folder, job), progress=progress, fresh=fresh)
+    if job.method == "sac":
+        return pbrl.train(world, job.cfg, teacher="true", **kw)
+    crowd = crowd_teacher(folder, cfg, world, people)
+    return eps_alg.train(world, job.cfg, crowd, person_name="participants", **kw)
+
+
+def _actor_path(folder: RunFolder, key: str) -> Path:
+    return folder.root / "actors" / (key.replace("/", "__") + ".npz")
+
+
+def recruit(key, cfg: DrivingConfig, world, n_valid: int, prefix: str, judge, max_rounds: int = 20):
+    """Recruit (as on MTurk) until ``n_valid`` recruits pass: each round draws ``n_valid`` recruits, trains
+    their π_H in one vmapped program and asks ``judge(key, drivers, actors) → [why dropped, "" if valid]``.
+
+    Returns every recruit in order as (driver, why, actor), stopping at the ``n_valid``-th valid one.
+    """
+    out, ok = [], 0
+    for rnd in range(max_rounds):
+        k_draw, k_judge = jax.random.split(jax.random.fold_in(key, rnd))
+        batch = [
+            dv.sample_driver(
+                jax.random.fold_in(k_draw, i), _population(cfg), f"{prefix}-{len(out) + i + 1:02d}", cfg.sleet
+            )
+            for i in range(n_valid)
+        ]
+        actors = train_expected_policies(world, batch, cfg)
+        whys = judge(k_judge, batch, actors)
+        for i, (d, why) in enumerate(zip(batch, whys)):
+            out.append((d, why, jax.tree.map(lambda a, i=i: a[i], actors)))
+            ok += not why
+            if ok == n_valid:
+                return out
+    raise RuntimeError(f"only {ok} of {len(out)} recruits passed the sanity check; need {n_valid}")
+
+
+def _population(cfg: DrivingConfig) -> dv.DriverPopulation:
+    return dataclasses.replace(cfg.population, importance_mean=tuple(cfg.importance))
+
+
+def sanity_segments(world, length: int):
+    """The sanity item: the ego keeps its speed into the braking front car (a collision) against one that
+    brakes as soon as the front car does; one episode each on a dry road, front car braking at step 1."""
+    params = world.params.with_sleet(0.0)._replace(brake_first=jnp.int32(1), brake_last=jnp.int32(1))
+    env = world.env
+    idle = lambda actor, obs: jnp.ones((1,), jnp.float32)  # noqa: E731
+    brake = lambda actor, obs: jnp.where(obs[7] > 0.5, float(SLOWER), 1.0)[None]  # noqa: E731
+    segs = []
+    for policy in (idle, brake):
+        obs, _, alive = rollouts(rng.key(50_000), env, params, policy, None, 1, world.horizon)
+        acts = jax.vmap(jax.vmap(lambda o: policy(None, o)))(obs[:, :-1])
+        segs.append((obs[0], acts[0], alive[0]))
+    return segs
+
+
+def _segment(obs, act, alive, length: int):
+    """The first ``length`` steps of an episode as one query segment ``[1, L, ·]``."""
+    from ..data.segments import Segments
+
+    return Segments(obs[None, :length], act[None, :length], obs[None, 1 : length + 1], alive[None, :length])
+
+
+def people_record(folder: RunFolder, cfg: DrivingConfig) -> dict:
+    """The training phase's participants: recruits, the sanity item, the bias question, r_A, everyone's π_H."""
+    probe = world_of(cfg)
+    (c_obs, c_act, c_alive), (s_obs, s_act, s_alive) = sanity_segments(probe, probe.horizon)
+    items = [_segment(c_obs, c_act, c_alive, probe.horizon), _segment(s_obs, s_act, s_alive, probe.horizon)]
+
+    def judge(key, batch, actors):
+        whys = []
+        for i, d in enumerate(batch):
+            teacher = dv.ExpectationTeacher(belief_params(probe, d), jax.tree.map(lambda a: a[i], actors), probe.env)
+            sc = [float(dv.segment_scores(s, teacher, cfg.teacher)[0]) for s in items]
+            fails = dv.sanity_fails(jax.random.fold_in(key, i), sc[0], sc[1], d.attentive, cfg.teacher)
+            whys.append("failed the sanity check (the collision more expected)" if fails else "")
+        return whys
+
+    key = rng.key(60_000 + cfg.eps.seed)
+    recruits = recruit(key, cfg, probe, cfg.participants, "train", judge)
+    valid = [(d, a) for d, why, a in recruits if not why]
+    stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *[a for _, a in valid])
+    save_pytree(folder.root / "actors" / "people.npz", stacked)
+    valid = [d for d, _ in valid]
+    bias = [
+        dv.bias_answer(jax.random.fold_in(key, 90_000 + i), d.believed_sleet, d.attentive, probe.params)
+        for i, d in enumerate(valid)
+    ]
+    expects = expected_behaviour(probe, valid, stacked)
+    rows = []
+    for d, why, _ in recruits:
+        row = {"pid": d.pid, "attentive": d.attentive, "believed_sleet": d.believed_sleet, "dropped": why}
+        row.update({f"importance_{i}": v for i, v in enumerate(d.importance)})
+        if not why:
+            j = valid.index(d)
+            row.update(bias_effective_braking=bias[j], **{k: v[j] for k, v in expects.items()})
+        rows.append(row)
+    weights = dv.engineered_weights(valid)
+    return {
+        "done": f"{len(valid)} valid of {len(recruits)}; {sum(bias)} chose effective braking",
+        "participants": rows,
+        "engineered_weights": [float(w) for w in weights],
+        "bias_effective": int(sum(bias)),
+        "valid": len(valid),
+        "recruits": len(recruits),
+    }
+
+
+def belief_params(world, d: dv.Driver):
+    """The world as driver ``d`` believes it (their sleet level)."""
+    return world.params.with_sleet(d.believed_sleet)
+
+
+def train_expected_policies(world, drivers: list[dv.Driver], cfg: DrivingConfig):
+    """Every driver's π_H: discrete SAC on their reward r_H in the world as they believe it, one program
+    vmapped over the drivers (one seed each). Actors with a leading driver axis."""
+    p = cfg.person
+    p.check()
+    beliefs = jax.tree.map(lambda *xs: jnp.stack(xs), *[belief_params(world, d) for d in drivers])
+    rewards = dv.RewardH(jnp.asarray(np.stack([d.weights for d in drivers])), beliefs)
+    env = world.env
+    keys = jax.random.split(rng.key(p.seed + 70_000), len(drivers))
+    loop = jax.vmap(lambda k, b: loop_init(k, env, b, p.sac, p.total_steps))(keys, beliefs)
+    for start in range(0, p.total_steps, p.chunk):
+        phase = "random" if start < p.sac.learning_starts else "train"
+
+        def chunk(ls, b, r, phase=phase):
+            return run_chunk(ls, env, b, r, n_steps=p.chunk, cfg=p.sac, phase=phase, reward_fn=dv.participant_reward)
+
+        loop = jax.vmap(chunk)(loop, beliefs, rewards)
+    return loop.sac.params.actor
+
+
+def load_people(folder: RunFolder, world, people: dict, cfg: DrivingConfig):
+    """The valid participants (as :class:`~mindgap.teachers.drivers.Driver`) and their stacked π_H actors."""
+    valid = [_driver(r) for r in people["participants"] if not r["dropped"]]
+    template = jax.vmap(lambda k: agent_init(k, world.env, cfg.person.sac).params.actor)(
+        jax.random.split(rng.key(0), len(valid))
+    )
+    return valid, load_pytree(folder.root / "actors" / "people.npz", template)[0]
+
+
+def _driver(row: dict) -> dv.Driver:
+    imp = tuple(int(row[f"importance_{i}"]) for i in range(4))
+    return dv.Driver(row["pid"], bool(row["attentive"]), imp, float(row["believed_sleet"]))
+
+
+def crowd_teacher(folder: RunFolder, cfg: DrivingConfig, world, people: dict) -> dv.CrowdTeacher:
+    valid, actors = load_people(folder, world, people, cfg)
+    beliefs = jax.tree.map(lambda *xs: jnp.stack(xs), *[belief_params(world, d) for d in valid])
+    attentive = jnp.asarray([d.attentive for d in valid])
+    return dv.CrowdTeacher(beliefs, actors, attentive, world.env, cfg.teacher)
+
+
+def expected_behaviour(world, drivers, actors) -> dict[str, list]:
+    """What each driver expects of the car in the scenario (π_H's greedy episodes in their own belief):
+    the share of episodes in which the expected car changes lane and in which it brakes first."""
+    out = {"expects_lane_change": [], "expects_braking_first": []}
+    for i, d in enumerate(drivers):
+        actor = jax.tree.map(lambda a, i=i: a[i], actors)
+        obs, _, alive = rollouts(
+            rng.key(80_000 + i), world.env, belief_params(world, d), greedy_policy(world.env), actor, 20, world.horizon
+        )
+        acts = jax.vmap(jax.vmap(lambda o: greedy_policy(world.env)(actor, o)))(obs[:, :-1])
+        b = behaviour(np.asarray(obs), np.asarray(acts), np.asarray(alive), world)
+        out["expects_lane_change"].append(float(np.mean(b["changed"])))
+        out["expects_braking_first"].append(float(np.mean(b["braked_first"])))
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# measuring a policy
+
+
+def greedy_episodes(world, actor, key, count: int):
+    """``count`` greedy episodes of one actor in ``world``: (obs [E, T+1, d], act [E, T, 1], alive [E, T], rewards [E, T])."""
+    policy = greedy_policy(world.env)
+    obs, rew, alive = rollouts(key, world.env, world.params, policy, actor, count, world.horizon)
+    act = jax.vmap(jax.vmap(lambda o: policy(actor, o)))(obs[:, :-1])
+    return obs, act, alive, rew
+
+
+def behaviour(obs: np.ndarray, act: np.ndarray, alive: np.ndarray, world) -> dict[str, np.ndarray]:
+    """Per episode: collided; the first lane change in decisions after the front car starts braking (NaN:
+    none; negative: before it); whether it changed lane; whether it braked (SLOWER) before its first lane
+    change after the onset; the smallest bumper gap [m] to the front car while in its lane."""
+    start = obs[:, 0, 3]
+    steps = alive.sum(-1).astype(int)
+    out = {k: [] for k in ("collided", "first_change", "changed", "braked_first", "min_gap")}
+    for e in range(obs.shape[0]):
+        n = steps[e]
+        o, a = obs[e, : n + 1], act[e, :n, 0]
+        onset = np.flatnonzero(o[:, 7] > 0.5)
+        onset = int(onset[0]) if onset.size else n
+        lane = np.flatnonzero(np.round(o[1:, 3]) != np.round(start[e]))
+        change = int(lane[0]) if lane.size else None  # the action at step `change` moved the target lane
+        out["collided"].append(float(o[-1, 6] > 0.5))
+        out["changed"].append(float(change is not None))
+        out["first_change"].append(np.nan if change is None else float(change + 1 - onset))
+        before = a[onset - 1 : change] if change is not None else a[max(onset - 1, 0) :]
+        out["braked_first"].append(float(np.any(np.round(before) == SLOWER)))
+        same = (np.abs(o[:, 0] - o[:, EGO_OBS + 1]) < 1.0) & (o[:, EGO_OBS] > 0)  # in its lane, ahead of it
+        gap = o[:, EGO_OBS] * DIST_SCALE - LENGTH
+        out["min_gap"].append(float(gap[same].min()) if same.any() else np.nan)
+    return {k: np.asarray(v, np.float64) for k, v in out.items()}
+
+
+def learner_record(cfg: DrivingConfig, world, actors, res: dict) -> dict:
+    """A learner's record: curve, and per seed the greedy episodes' return and behaviour."""
+    seeds = jax.tree.leaves(actors)[0].shape[0]
+    per = {k: [] for k in ("return", "collided", "first_change", "changed", "braked_first", "min_gap")}
+    for s in range(seeds):
+        actor = jax.tree.map(lambda a, s=s: a[s], actors)
+        obs, act, alive, rew = greedy_episodes(world, actor, rng.key(20_000 + s), cfg.rollouts)
+        b = behaviour(np.asarray(obs), np.asarray(act), np.asarray(alive), world)
+        per["return"].append(float(np.asarray(rew).sum(-1).mean()))
+        for k, v in b.items():
+            per[k].append(float(np.nanmean(v)) if np.isfinite(v).any() else None)
+    final = np.asarray(res["final_returns"], np.float64)
+    if not np.all(np.isfinite(final)):
+        raise FloatingPointError("non-finite returns: the run diverged")
+    return {
+        "seeds": seeds,
+        "curve": [[int(s), int(t), float(r), int(q)] for s, t, r, q in res["curve"]],
+        "final": [float(x) for x in final.mean(1)],
+        **per,
+    }
+
+
+# ---------------------------------------------------------------------------------------
+# the testing phase
+
+
+def testing_record(folder: RunFolder, cfg: DrivingConfig, world, people: dict) -> dict:
+    """New participants rate every method's greedy rollouts (and the sanity collision) 1–10."""
+    shown, index = [], []
+    for m in METHODS:
+        rec = folder.done(f"{WORLD}/{m}")
+        actors = _load_actors(folder, f"{WORLD}/{m}", world, cfg, rec["seeds"])
+        for s in range(rec["seeds"]):
+            actor = jax.tree.map(lambda a, s=s: a[s], actors)
+            obs, act, alive, _ = greedy_episodes(world, actor, rng.key(20_000 + s), cfg.shown)
+            shown.append((obs[:, :-1], act, alive))
+            index += [(m, s, e) for e in range(cfg.shown)]
+    (c_obs, c_act, c_alive), _ = sanity_segments(world, world.horizon)
+    shown.append((c_obs[None, :-1], c_act[None], c_alive[None]))
+    index.append(("sanity", -1, 0))
+    obs, act, alive = (jnp.concatenate(x) for x in zip(*shown))
+    sanity = len(index) - 1
+    ratings = {}
+
+    def judge(key, batch, actors):
+        whys = []
+        for i, d in enumerate(batch):
+            actor = jax.tree.map(lambda a: a[i], actors)
+            r = dv.rate_rollouts(
+                jax.random.fold_in(key, i), actor, d.attentive, obs, act, alive, cfg.population.rating_noise
+            )
+            ratings[d.pid] = r
+            whys.append(dv.rating_fails(r, sanity))
+        return whys
+
+    raters = [(d, why) for d, why, _ in recruit(rng.key(61_000 + cfg.eps.seed), cfg, world, cfg.raters, "test", judge)]
+    rows = []
+    for d, why in raters:
+        for (m, s, e), r in zip(index, ratings[d.pid]):
+            rows.append({"rater": d.pid, "valid": not why, "method": m, "seed": s, "episode": e, "rating": float(r)})
+    valid = [d for d, why in raters if not why]
+    return {
+        "done": f"{len(valid)} valid raters of {len(raters)}",
+        "ratings": rows,
+        "raters": [
+            {"pid": d.pid, "attentive": d.attentive, "believed_sleet": d.believed_sleet, "dropped": why}
+            for d, why in raters
+        ],
+    }
+
+
+def _load_actors(folder: RunFolder, key: str, world, cfg: DrivingConfig, seeds: int):
+    path = _actor_path(folder, key)
+    if not path.exists():
+        raise RuntimeError(f"{key}'s policies are missing from {folder.root}; rerun with --fresh")
+    sac = cfg.eps.agent_sac() if not key.endswith("/sac") else _sac_cfg(cfg).sac
+    template = jax.vmap(lambda k: agent_init(k, world.env, sac).params.actor)(jax.random.split(rng.key(0), seeds))
+    return load_pytree(path, template)[0]
+
+
+# ---------------------------------------------------------------------------------------
+# outputs
+
+
+def write_outputs(cfg: DrivingConfig, out: Path, records: dict) -> dict:
+    from .driving_report import write_outputs as write
+
+    return write(cfg, out, records)
+
+
+__all__ = ["DrivingConfig", "preset", "jobs", "run", "to_jsonable", "write_csv"]

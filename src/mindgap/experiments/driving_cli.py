@@ -1,0 +1,53 @@
+"""The driving study on the command line: ``mindgap reproduce driving``.
+
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
+
+``--fast`` is the quick preset (1 seed, 1500 steps, 4 + 4 participants, tiny networks: a dry
+run and the tests' preset, not results); without it the full one (5 seeds, 30 000 steps,
+400 queries, 14 + 15 participants). ``--sleet`` sets the road (0 dry … 1 full sleet, default
+1); ``--importance`` the population's mean answers to Fig. 32's four questions (1–5; default
+the study's 3.42,4.57,3.28,3.78). The run folder defaults to ``runs/driving``
+(``runs/driving-fast``); rerunning resumes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from . import driving
+
+
+def reproduce(args) -> int:
+    for flag in ("participants", "shard"):
+        if getattr(args, flag, None):
+            raise ValueError(f"--{flag} is not an option of the driving study")
+    cfg = driving.preset("fast" if args.fast else "full")
+    changes = {}
+    if args.seeds is not None:
+        changes["seeds"] = args.seeds
+    if getattr(args, "sleet", None) is not None:
+        changes["sleet"] = args.sleet
+    if getattr(args, "importance", None):
+        try:
+            values = tuple(float(v) for v in args.importance.split(","))
+        except ValueError:
+            raise ValueError(f"--importance takes four numbers separated by commas, got {args.importance!r}") from None
+        changes["importance"] = values
+    if changes:
+        cfg = replace(cfg, **changes)  # checked in DrivingConfig.__post_init__: one line each
+    out = args.out or Path("runs") / ("driving" + ("-fast" if args.fast else ""))
+    only = getattr(args, "job", None)
+    summary = driving.run(cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=args.assemble, only=only)
+    if only:
+        from ._runfolder import job_summary
+
+        print(job_summary(summary["job"], out, only))
+        return 0
+    print(summary["table_md"])
+    for c in summary.get("claims", []):
+        print(f"[{'ok' if c['held'] else 'not met'}] {c['text']}: {c['measured']}")
+    if summary.get("missing_jobs"):
+        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
+    print(f"results, ratings and figures in {out}/")
+    return 0

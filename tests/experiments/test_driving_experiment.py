@@ -1,0 +1,141 @@
+"""The driving study (``mindgap reproduce driving``): files, values, resume, bad input.
+
+As for the EPS experiments, the default test runs the ``--fast`` preset through the CLI with the
+expensive training replaced by stand-ins of the real shape: every participant's π_H is a
+hand-made categorical policy (brake when the front car brakes, or change lane), and each
+learner's "training" returns actors that drive by a fixed rule (SAC changes lane at once,
+DRLHP brakes in its lane, EPS brakes and then changes lane). Everything after training runs
+for real: recruiting with the sanity item, r_A from the answers, the greedy episodes in the
+sleety world and the behaviours measured on them, the new participants' ratings, Table 5,
+the claims, the highway-env frames and GIFs, the report, and resuming.
+"""
+
+import csv
+import json
+from types import SimpleNamespace
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mindgap.cli import main
+from mindgap.envs.driving.params import IDLE, LANE_LEFT, SLOWER
+from mindgap.experiments import driving
+from mindgap.models.mlp import init_mlp
+from report_check import check_report
+
+OBS = 11
+
+
+def _rule_actor(kind: str, hidden=(16,)):
+    """A categorical actor whose greedy action follows a rule of the observation (a tiny ReLU network
+    set by hand): ``brake`` SLOWER once the front car brakes, ``steer`` LANE_LEFT from the start,
+    ``brake_then_steer`` SLOWER while faster than 23 m/s after the onset, then LANE_LEFT."""
+    layers = [(w * 0, b * 0) for w, b in init_mlp(jax.random.key(0), (OBS, *hidden, 5))]
+    (w0, b0), (w1, b1) = layers[0], layers[-1]
+    w0 = w0.at[7, 0].set(1.0)  # h0 = braking flag
+    w0 = w0.at[2, 1].set(30.0).at[7, 1].set(30.0)  # h1 = speed + 30 flag
+    b0 = b0.at[1].set(-53.0)  # h1 > 0 once the front car brakes, while faster than 23 m/s
+    if kind == "brake":
+        w1, b1 = w1.at[0, SLOWER].set(10.0), b1.at[IDLE].set(5.0)
+    elif kind == "steer":
+        b1 = b1.at[LANE_LEFT].set(5.0)
+    else:
+        w1 = w1.at[1, SLOWER].set(50.0).at[0, LANE_LEFT].set(10.0)
+        b1 = b1.at[IDLE].set(5.0)
+    middle = [(w.at[0, 0].set(1.0).at[1, 1].set(1.0), b) for w, b in layers[1:-1]]  # pass h0, h1 on
+    return ((w0, b0), *middle, (w1, b1))
+
+
+RULES = {"sac": "steer", "drlhp": "brake", "eps": "brake_then_steer"}
+
+
+@pytest.fixture
+def stand_ins(monkeypatch):
+    calls = []
+
+    def fake_policies(world, drivers, cfg):
+        kinds = ["brake" if d.biased else "steer" for d in drivers]
+        return jax.tree.map(lambda *x: jnp.stack(x), *[_rule_actor(k, cfg.person.sac.hidden) for k in kinds])
+
+    def fake_train(folder, cfg, world, people, job, seeds, *, fresh, progress):
+        calls.append(job.key)
+        if job.method != "sac":
+            crowd = driving.crowd_teacher(folder, cfg, world, people)
+            assert crowd.size == cfg.participants
+        hidden = job.cfg.sac.hidden
+        actors = jax.tree.map(lambda *x: jnp.stack(x), *[_rule_actor(RULES[job.method], hidden)] * seeds)
+        loop = SimpleNamespace(sac=SimpleNamespace(params=SimpleNamespace(actor=actors)))
+        curve = [(s, t, 1.0, 0) for t in (500, 1000, 1500) for s in range(seeds)]
+        return {"curve": curve, "final_returns": np.ones((seeds, 4)), "carry": SimpleNamespace(loop=loop)}
+
+    monkeypatch.setattr(driving, "train_expected_policies", fake_policies)
+    monkeypatch.setattr(driving, "train", fake_train)
+    return calls
+
+
+def test_driving_fast_table5_behaviours_figures_and_resume(stand_ins, tmp_path, capsys):
+    out = tmp_path / "driving"
+    argv = ["reproduce", "driving", "--fast", "--quiet", "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert stand_ins == ["driving/sac", "driving/drlhp", "driving/eps"]
+    assert "| avg. rating (dissertation) | 7.6 | 5.0 | 5.9 |" in printed
+    check_report(out, tmp_path / "report", "driving")
+    with (out / "results.csv").open() as f:
+        by = {r["method"]: r for r in csv.DictReader(f)}
+    # measured on the rules' episodes in the sleety world
+    assert float(by["sac"]["changed_mean"]) == 1.0 and float(by["sac"]["collided_mean"]) == 0.0
+    assert float(by["sac"]["first_change_mean"]) < 0  # before the front car brakes: at once
+    assert float(by["drlhp"]["changed_mean"]) == 0.0 and float(by["drlhp"]["braked_first_mean"]) == 1.0
+    assert float(by["eps"]["braked_first_mean"]) > 0.5 and float(by["eps"]["changed_mean"]) > 0.5
+    assert float(by["drlhp"]["min_gap_mean"]) < 10.0 and float(by["drlhp"]["collided_mean"]) > 0.5  # braking on sleet
+    assert float(by["sac"]["return_mean"]) > float(by["drlhp"]["return_mean"])
+    # the raters expect braking (the biased ones by the stand-in π_H): the in-lane brakers are rated above SAC
+    ratings = [r for r in csv.DictReader((out / "ratings.csv").open()) if r["valid"] == "True"]
+    assert {r["method"] for r in ratings} == {"eps", "sac", "drlhp", "sanity"}
+    people = json.loads((out / "jobs" / "driving__people.json").read_text())
+    assert people["valid"] == 4 and len(people["engineered_weights"]) == 4
+    assert sum(people["engineered_weights"]) == pytest.approx(1.0, abs=1e-5)
+    summary = json.loads((out / "summary.json").read_text())
+    texts = [c["text"] for c in summary["claims"]]
+    assert "driving: EPS is rated highest by the new participants" in texts
+    assert "driving: SAC changes lane first (earliest first lane change, in most episodes)" in texts
+    assert {c["text"]: c["held"] for c in summary["claims"]}[
+        "driving: EPS brakes first, then changes lane (in most episodes)"
+    ]
+    for name in ("frames_eps.png", "episode_sac.gif", "participants.csv", "table.md", "curves.csv"):
+        assert (out / name).stat().st_size > 0, name
+
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
+    assert main(argv) == 0  # a rerun reads everything back
+    assert len(stand_ins) == 3 and capsys.readouterr().out == printed
+    assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--sleet", "1.5"], "sleet must be in [0, 1]"),
+        (["--importance", "3,4,6,2"], "importance ratings must be in [1, 5]"),
+        (["--importance", "3,4"], "importance must hold 4 ratings"),
+        (["--importance", "a,b,c,d"], "--importance takes four numbers"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(flags, message, tmp_path, capsys):
+    assert main(["reproduce", "driving", "--fast", "--out", str(tmp_path / "x"), *flags]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+    assert main(["reproduce", "eps", "--fast", "--sleet", "0.5"]) == 2
+    assert "--sleet belongs to the driving study" in capsys.readouterr().err
+
+
+def test_presets_and_the_rerun_command():
+    from mindgap.experiments import registry
+
+    full, fast = driving.preset("full"), driving.preset("fast")
+    assert full.seeds == 5 and full.eps.lam == 2.0 and full.participants == 14 and full.raters == 15
+    assert registry.preset_of("driving", fast) == "fast"
+    line = registry.command("driving", full.__class__(sleet=0.5), "runs/d")
+    assert line == "mindgap reproduce driving --sleet 0.5 --out runs/d"

@@ -1,0 +1,102 @@
+"""The driving study's simulated participants (§4.4.2): answers, beliefs, expectation answers, ratings."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mindgap import rng
+from mindgap.data.segments import Segments
+from mindgap.envs.driving import STUDY_IMPORTANCE, make_world
+from mindgap.envs.driving.params import IDLE, LANE_LEFT, SLOWER
+from mindgap.models.mlp import init_mlp
+from mindgap.teachers import drivers as dv
+from mindgap.teachers.preference import TeacherConfig
+
+WORLD = make_world()
+
+
+def _actor(favourite: int, strength: float = 3.0):
+    """A categorical π_H that prefers one action everywhere (zero weights, a biased last layer)."""
+    layers = init_mlp(jax.random.key(0), (WORLD.env.observation_space.dim, 4, 5))
+    (w0, b0), (w1, b1) = layers
+    return ((w0 * 0, b0), (w1 * 0, b1.at[favourite].set(strength)))
+
+
+def _episode(action: int, key=0):
+    """One episode on a dry road where the car takes ``action`` once the front car brakes, IDLE before."""
+    from mindgap.algorithms.sac_loop import rollouts
+
+    params = WORLD.params.with_sleet(0.0)
+    policy = lambda _, o: jnp.where(o[7] > 0.5, float(action), float(IDLE))[None]  # noqa: E731
+    obs, _, alive = rollouts(rng.key(key), WORLD.env, params, policy, None, 1, WORLD.horizon)
+    act = jax.vmap(lambda o: policy(None, o))(obs[0, :-1])
+    return Segments(obs[:, :-1], act[None], obs[:, 1:], alive)
+
+
+def test_recruits_answer_around_the_study_with_spread_and_the_availability_bias():
+    pop = dv.DriverPopulation()
+    people = [dv.sample_driver(jax.random.fold_in(rng.key(1), i), pop, f"p{i}", 1.0) for i in range(300)]
+    attentive = [d for d in people if d.attentive]
+    answers = np.array([d.importance for d in attentive])
+    assert np.allclose(answers.mean(0), STUDY_IMPORTANCE, atol=0.25) and answers.std(0).min() > 0.4
+    assert set(np.unique(answers)) <= {1, 2, 3, 4, 5}
+    assert abs(np.mean([d.biased for d in people]) - 12 / 14) < 0.07
+    assert abs(1 - len(attentive) / len(people) - pop.inattentive) < 0.06
+    w = attentive[0].weights
+    assert w.sum() == pytest.approx(1.0) and np.all(np.argsort(w) == np.argsort(attentive[0].importance, kind="stable"))
+    assert np.allclose(dv.engineered_weights(attentive), np.mean(answers, 0) / np.mean(answers, 0).sum(), atol=1e-6)
+
+
+def test_the_reward_follows_the_weights():
+    """A lane change scores better for someone who weighs speed, braking for someone who weighs staying in lane."""
+    steer, brake = _episode(LANE_LEFT), _episode(SLOWER)
+    params = WORLD.params
+
+    def ret(seg, weights):
+        p = dv.RewardH(jnp.asarray(weights, jnp.float32), params)
+        return float(dv.participant_reward(p, seg.obs[0], seg.act[0], seg.next_obs[0]).sum())
+
+    speedy, lane_keeper = dv.importance_weights([5, 1, 1, 1]), dv.importance_weights([1, 1, 1, 5])
+    assert ret(steer, speedy) > ret(brake, speedy)
+    assert ret(brake, lane_keeper) > ret(steer, lane_keeper)
+
+
+def test_crowd_answers_follow_what_each_participant_expects(key):
+    """Bradley–Terry on Σ log T_H + log π_H: people expecting braking pick the braking segment, people
+    expecting a lane change the other, and an inattentive crowd answers at random."""
+    steer, brake = _episode(LANE_LEFT), _episode(SLOWER)
+    k = 200
+    seg_a = jax.tree.map(lambda x: jnp.repeat(x, k, 0), brake)
+    seg_b = jax.tree.map(lambda x: jnp.repeat(x, k, 0), steer)
+    dry = WORLD.params.with_sleet(0.0)
+    beliefs = jax.tree.map(lambda *x: jnp.stack(x), dry, dry)
+
+    def crowd(favourite, attentive=True):
+        policies = jax.tree.map(lambda *x: jnp.stack(x), _actor(favourite), _actor(favourite))
+        return dv.CrowdTeacher(beliefs, policies, jnp.asarray([attentive] * 2), WORLD.env, TeacherConfig(beta=1.0))
+
+    brakers = jax.jit(crowd(SLOWER).answer)(key, seg_a, seg_b)[0]
+    steerers = jax.jit(crowd(LANE_LEFT).answer)(key, seg_a, seg_b)[0]
+    random = jax.jit(crowd(SLOWER, attentive=False).answer)(key, seg_a, seg_b)[0]
+    assert float(brakers.mean()) > 0.9 and float(steerers.mean()) < 0.1
+    assert 0.35 < float(random.mean()) < 0.65
+
+
+def test_sanity_bias_question_and_ratings(key):
+    cfg = TeacherConfig()
+    assert not dv.sanity_fails(key, -40.0, -5.0, True, cfg)  # the collision is far less expected
+    assert dv.bias_answer(key, 0.0, True, WORLD.params) and not dv.bias_answer(key, 1.0, True, WORLD.params)
+    steer, brake = _episode(LANE_LEFT), _episode(SLOWER)
+    obs = jnp.concatenate([steer.obs, brake.obs])
+    act = jnp.concatenate([steer.act, brake.act])
+    alive = jnp.concatenate([steer.mask, brake.mask])
+    r = dv.rate_rollouts(key, _actor(SLOWER), True, obs, act, alive, noise=0.0)
+    assert r[1] > r[0] and set(r) <= set(range(1, 11))
+    assert dv.rating_fails(np.array([5.0, 1.0, 7.0]), sanity=1) == ""
+    assert "sanity" in dv.rating_fails(np.array([5.0, 6.0, 7.0]), sanity=1)
+    assert "same rating" in dv.rating_fails(np.array([4.0, 4.0]), sanity=0)
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        dv.check_sleet_level(1.5)
+    with pytest.raises(ValueError, match="share"):
+        dv.DriverPopulation(biased=1.2)
