@@ -1,0 +1,95 @@
+"""Scripted driving policies scored by r_A and by the participants' reward r_H (docs/experiments/driving.md).
+
+Checks the measurement behind the participants' fourth factor: with r_A's lane following
+(offset from the nearest lane's centre) a person who believes the road is dry would expect a
+lane change, whereas with Fig. 32's "staying on the same lane" (1 in the start lane, 0 one lane
+away; :func:`mindgap.teachers.drivers.stay_in_lane`) they would expect braking in lane.
+
+Three policies, each run for ``--episodes`` episodes on a dry road and at ``--sleet``:
+
+* ``brake in lane``: SLOWER once the front car brakes (IDLE before);
+* ``change lane when it brakes``: LANE_LEFT once the front car brakes (IDLE before);
+* ``change lane at once``: LANE_LEFT at the first step, IDLE after.
+
+Both rewards use the study's average importances (Fig. 32). Prints the mean return (± its
+standard error) of each policy under each reward:
+
+    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mindgap.envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
+from mindgap.envs.driving.params import ACTIONS
+from mindgap.teachers.drivers import RewardH, participant_reward
+
+IDLE, LEFT, SLOWER = ACTIONS.index("IDLE"), ACTIONS.index("LANE_LEFT"), ACTIONS.index("SLOWER")
+POLICIES = ("brake in lane", "change lane when it brakes", "change lane at once")
+
+
+def act(policy: int, obs: jax.Array, t: jax.Array) -> jax.Array:
+    """The scripted action of ``policy`` (an index into :data:`POLICIES`) at step ``t``."""
+    front_brakes = obs[7] > 0.5  # the observation's "front car braking" flag
+    return jnp.select(
+        [policy == 0, policy == 1],
+        [jnp.where(front_brakes, SLOWER, IDLE), jnp.where(front_brakes, LEFT, IDLE)],
+        jnp.where(t == 0, LEFT, IDLE),
+    )
+
+
+def returns(world, params, policy: int, episodes: int, key) -> tuple[np.ndarray, np.ndarray]:
+    """Returns [episodes] of ``policy`` under r_A and under the average participant's r_H."""
+    env, horizon = world.env, world.horizon
+    r_h = RewardH(jnp.asarray(importance_weights(STUDY_IMPORTANCE), jnp.float32), params)
+
+    def episode(k):
+        k0, k1 = jax.random.split(k)
+        state = env.reset(k0, params)
+
+        def body(carry, kt):
+            state, done, t, ra, rh = carry
+            obs = env.observe(state, params)
+            a = act(policy, obs, t)
+            out = env.step(kt, state, a, params)
+            nxt = env.observe(out.state, params)
+            live = ~done
+            ra = ra + live * env.reward(obs, a, nxt, params)
+            rh = rh + live * participant_reward(r_h, obs[None], a[None], nxt[None])[0]
+            done = done | out.terminated | out.truncated
+            return (out.state, done, t + 1, ra, rh), None
+
+        zero = jnp.zeros((), jnp.float32)
+        (_, _, _, ra, rh), _ = jax.lax.scan(
+            body, (state, jnp.zeros((), bool), 0, zero, zero), jax.random.split(k1, horizon)
+        )
+        return ra, rh
+
+    ra, rh = jax.jit(jax.vmap(episode))(jax.random.split(key, episodes))
+    return np.asarray(ra), np.asarray(rh)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--episodes", type=int, default=200)
+    ap.add_argument("--sleet", type=float, default=1.0)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    world = make_world(sleet=args.sleet)
+    key = jax.random.key(args.seed)
+    print(f"mean return over {args.episodes} episodes (± standard error); study's average importances")
+    print(f"{'road':<8} {'policy':<28} {'r_A (lane following)':>22} {'r_H (same lane)':>18}")
+    for road, params in (("dry", world.beliefs["dry"]), (f"sleet {args.sleet:g}", world.params)):
+        for i, name in enumerate(POLICIES):
+            ra, rh = returns(world, params, i, args.episodes, key)
+            se = lambda x: x.std(ddof=1) / np.sqrt(len(x))  # noqa: E731
+            print(f"{road:<8} {name:<28} {ra.mean():>14.1f} ± {se(ra):<5.1f} {rh.mean():>10.1f} ± {se(rh):<5.1f}")
+
+
+if __name__ == "__main__":
+    main()
