@@ -156,9 +156,20 @@ def sac_update(state: SACState, batch: Batch, key: jax.Array, cfg: SACConfig):
     Returns:
         (new state, metrics dict of scalars).
     """
+    critic_loss, actor_loss, _ = sac_losses(state.params, batch, key, cfg)
+    entropy = -batch.act.shape[-1] if cfg.target_entropy is None else cfg.target_entropy
+    return apply_update(state, critic_loss, actor_loss, entropy, cfg)
+
+
+def apply_update(state: SACState, critic_loss, actor_loss, target_entropy: float, cfg: SACConfig):
+    """Steps the critics on ``critic_loss``, the actor on ``actor_loss`` (with the updated critics),
+    α towards ``target_entropy`` (unless fixed), and the targets by Polyak averaging.
+
+    The losses return ``(loss, aux)``: the critics' Q values and the actor's (expected) log π.
+    Shared by continuous and discrete SAC (:mod:`~mindgap.algorithms.sac_discrete`).
+    """
     opt = _optimiser(cfg)
     p = state.params
-    critic_loss, actor_loss, _ = sac_losses(p, batch, key, cfg)
     (lc, q), gc = jax.value_and_grad(critic_loss, has_aux=True)(p.critic)
     upd, critic_opt = opt.update(gc, state.critic_opt, p.critic)
     critic = optax.apply_updates(p.critic, upd)
@@ -167,7 +178,6 @@ def sac_update(state: SACState, batch: Batch, key: jax.Array, cfg: SACConfig):
     actor = optax.apply_updates(p.actor, upd)
     log_alpha, alpha_opt = p.log_alpha, state.alpha_opt
     if cfg.alpha is None:
-        target_entropy = -batch.act.shape[-1] if cfg.target_entropy is None else cfg.target_entropy
         entropy_gap = jax.lax.stop_gradient(jnp.mean(logp) + target_entropy)
         g_alpha = -entropy_gap  # d/d log α of mean(−log α · (log π + H̄))
         upd, alpha_opt = opt.update(g_alpha, state.alpha_opt, p.log_alpha)

@@ -36,7 +36,7 @@ import optax
 from ..data.batch import Batch
 from ..models.categorical import logits
 from ..models.mlp import Params, init_mlp, init_stack, mlp
-from .sac import SACConfig, SACParams, SACState
+from .sac import SACConfig, SACParams, SACState, apply_update
 
 TARGET_ENTROPY_SHARE = 0.5
 """H̄ = this · log n when ``SACConfig.target_entropy`` is None (module docstring)."""
@@ -94,28 +94,6 @@ def discrete_sac_update(state: SACState, batch: Batch, key: jax.Array, cfg: SACC
     """One update (critics, actor with the updated critics, α, targets); ``key`` is unused (the
     expectations over actions are exact). Returns (new state, metrics)."""
     del key
-    opt = optax.adam(cfg.lr)
-    p = state.params
-    n = p.actor[-1][1].shape[-1]
-    critic_loss, actor_loss, _ = discrete_sac_losses(p, batch, cfg)
-    (lc, q), gc = jax.value_and_grad(critic_loss, has_aux=True)(p.critic)
-    upd, critic_opt = opt.update(gc, state.critic_opt, p.critic)
-    critic = optax.apply_updates(p.critic, upd)
-    (la, logp), ga = jax.value_and_grad(actor_loss, has_aux=True)(p.actor, critic)
-    upd, actor_opt = opt.update(ga, state.actor_opt, p.actor)
-    actor = optax.apply_updates(p.actor, upd)
-    log_alpha, alpha_opt = p.log_alpha, state.alpha_opt
-    if cfg.alpha is None:
-        gap = jax.lax.stop_gradient(jnp.mean(logp) + target_entropy(cfg, n))
-        upd, alpha_opt = opt.update(-gap, state.alpha_opt, p.log_alpha)
-        log_alpha = optax.apply_updates(p.log_alpha, upd)
-    target = jax.tree.map(lambda t, o: (1.0 - cfg.tau) * t + cfg.tau * o, p.target, critic)
-    new = SACState(SACParams(actor, critic, target, log_alpha), actor_opt, critic_opt, alpha_opt, state.updates + 1)
-    metrics = {
-        "critic_loss": lc,
-        "actor_loss": la,
-        "alpha": jnp.exp(log_alpha),
-        "q": jnp.mean(q),
-        "entropy": -jnp.mean(logp),
-    }
-    return new, metrics
+    n = state.params.actor[-1][1].shape[-1]
+    critic_loss, actor_loss, _ = discrete_sac_losses(state.params, batch, cfg)
+    return apply_update(state, critic_loss, actor_loss, target_entropy(cfg, n), cfg)

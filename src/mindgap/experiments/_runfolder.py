@@ -139,6 +139,21 @@ class RunFolder:
         return record
 
 
+def print_run(summary: dict, out: Path, only: str | None, outputs: str = "curves and figures") -> int:
+    """What ``mindgap reproduce NAME`` prints at the end: the one job's numbers (``--job``), or the
+    table, each claim as held or not, the jobs still missing and where the outputs are. Returns 0."""
+    if only:
+        print(job_summary(summary["job"], out, only))
+        return 0
+    print(summary["table_md"])
+    for c in summary.get("claims", []):
+        print(f"[{'ok' if c['held'] else 'not met'}] {c['text']}: {c['measured']}")
+    if summary.get("missing_jobs"):
+        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
+    print(f"results, {outputs} in {out}/")
+    return 0
+
+
 def job_summary(record: dict, root: Path, key: str) -> str:
     """What ``mindgap reproduce … --job KEY`` prints: the record's numbers (a Table 1 fit's
     metrics included) and where the record is."""

@@ -16,6 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from . import driving
+from ._runfolder import print_run
 
 
 def reproduce(args) -> int:
@@ -39,15 +40,4 @@ def reproduce(args) -> int:
     out = args.out or Path("runs") / ("driving" + ("-fast" if args.fast else ""))
     only = getattr(args, "job", None)
     summary = driving.run(cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=args.assemble, only=only)
-    if only:
-        from ._runfolder import job_summary
-
-        print(job_summary(summary["job"], out, only))
-        return 0
-    print(summary["table_md"])
-    for c in summary.get("claims", []):
-        print(f"[{'ok' if c['held'] else 'not met'}] {c['text']}: {c['measured']}")
-    if summary.get("missing_jobs"):
-        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
-    print(f"results, ratings and figures in {out}/")
-    return 0
+    return print_run(summary, out, only, "ratings and figures")

@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from . import registry
+from ._runfolder import print_run
 
 NAMES = ("nav", "priors", "sampling", "eps", "lambda")
 
@@ -51,15 +52,4 @@ def reproduce(args) -> int:
     summary = module.run(
         cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False), only=only
     )
-    if only:
-        from ._runfolder import job_summary
-
-        print(job_summary(summary["job"], out, only))
-        return 0
-    print(summary["table_md"])
-    for c in summary.get("claims", []):
-        print(f"[{'ok' if c['held'] else 'not met'}] {c['text']}: {c['measured']}")
-    if summary.get("missing_jobs"):
-        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
-    print(f"results, curves and figures in {out}/")
-    return 0
+    return print_run(summary, out, only)
