@@ -30,6 +30,14 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--belief", help="belief of a biased person (default: the world's first)")
     add_belief_env_flag(p)
+    p.add_argument(
+        "--teacher",
+        help="study:STORE: people answer 'which is more expected?' live through the study app "
+        "(mindgap study serve --db STORE; §4.4.2's training phase); default: the simulated --person",
+    )
+    p.add_argument(
+        "--answer-timeout", type=float, default=600.0, help="study teacher: seconds to wait per round (default 600)"
+    )
     p.add_argument("--queries", type=int, help="query budget (default 800)")
     p.add_argument("--per-round", type=int, help="queries per feedback round (default 80)")
     p.add_argument("--sampler", default="disagreement", help=f"{', '.join(SAMPLERS)} (default disagreement)")
@@ -112,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
         if getattr(args, name) is not None:
             over[name] = getattr(args, name)
     cfg = eps_config(preset, **over)
+    if args.teacher is not None:
+        return _run_with_people(args, world, cfg, train, write_outputs)
     policy_cfg = ExpectedPolicyConfig.fast() if args.fast else ExpectedPolicyConfig()
     unbiased = args.person == "unbiased" and not gym  # on a gym world the unbiased person's belief is learned above
     person = expectation_teacher(
@@ -172,5 +182,30 @@ def run(args: argparse.Namespace) -> int:
         f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
         f"{summary['final_return_std']:.1f}, explicability {expl.mean():.1f} ± {expl.std():.1f} over "
         f"{args.seeds} seed(s), {summary['queries']} queries asked; {written} in {args.out}/"
+    )
+    return 0
+
+
+def _run_with_people(args, world, cfg, train, write_outputs) -> int:
+    """EPS asking people through a running study (``--teacher study:STORE``): the engine's host teacher.
+
+    No simulated person is built, so there is no explicability score (Eq. 4.4 needs the person's
+    own T_H and π_H, which people do not hand over); the answers are in the run's query dataset and
+    in the study's export (``preferences.json``, protocol expectation).
+    """
+    from ..study.live import StudyTeacher
+
+    if not args.teacher.startswith("study:"):
+        raise ValueError(f"--teacher must be study:STORE, got {args.teacher!r}")
+    if cfg.surrogate == "exact":
+        raise ValueError("--surrogate exact reads a simulated person's models: drop --teacher study:STORE")
+    host = StudyTeacher(args.teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
+    res = train(world, cfg, host, seeds=args.seeds, out=args.out, progress=not args.quiet, fresh=args.fresh)
+    label = f"{cfg.method} (λ {cfg.lam:g}, people through {host.name})" if cfg.method == "eps" else "drlhp (people)"
+    summary = write_outputs(args.out, world, res, label, method=cfg.method, lam=cfg.lam, person=host.name)
+    print(
+        f"{label} on {world.name}: final return {summary['final_return_mean']:.1f} ± "
+        f"{summary['final_return_std']:.1f} over {args.seeds} seed(s), {summary['queries']} queries answered "
+        f"in {len(host.batches)} round(s); curve.csv, trajectories.png in {args.out}/"
     )
     return 0

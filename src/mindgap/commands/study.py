@@ -7,6 +7,7 @@ mindgap study serve --config study.yaml [--db FILE] [--host 127.0.0.1] [--port 8
                     [--public-url https://study.example.org]
 mindgap study links --db FILE [--base http://host:port]  # the participants' personal links
 mindgap study export --db FILE --out DIR [--partial]     # ratings.csv or preferences.json, answers.csv/json
+mindgap study driving [--answers answers.json] [--ratings ratings.csv] [--out summary.json]   # §4.4.2's numbers
 """
 
 from __future__ import annotations
@@ -44,6 +45,10 @@ def add_parser(sub) -> None:
         "--out", type=Path, required=True, help="folder for ratings.csv or preferences.json, answers.csv/json"
     )
     e.add_argument("--partial", action="store_true", help="also export participants who did not finish")
+    d = ss.add_parser("driving", help="the driving study's numbers from its exports (r_A's importances, Table 5)")
+    d.add_argument("--answers", type=Path, help="the training phase's answers.json: importances, bias question")
+    d.add_argument("--ratings", type=Path, help="the testing phase's ratings.csv: each method's average rating")
+    d.add_argument("--out", type=Path, help="also write the numbers as JSON here")
     x = ss.add_parser("examples", help="list the example study files, or copy one")
     x.add_argument("name", nargs="?", help="an example's name")
     x.add_argument("--out", type=Path, help="where to copy it (default: print it)")
@@ -79,12 +84,16 @@ def run(args: argparse.Namespace) -> int:
         study = load_study(args.config)
         items = build_items(study)
         sanity = [it.id for it in items if it.sanity]
-        what = "live queries from a training run" if study.live else f"{len(items)} items"
+        what = f"{len(items)} items"
+        if study.live:
+            what = "live queries from a training run" + (f" after {len(items)} fixed items" if items else "")
         print(f"study {study.name!r}: {study.protocol}, domain {study.domain['name']}, {what}")
         print(
             f"  {study.participants} participants, {len(study.questionnaire)} questions, sanity items: {sanity or 'none'}"
         )
         return 0
+    if cmd == "driving":
+        return _driving(args)
     if cmd == "serve":
         if not 0 < args.port < 65536:
             raise ValueError(f"--port must be 1..65535, got {args.port}")
@@ -108,4 +117,43 @@ def run(args: argparse.Namespace) -> int:
 
     for path in export_all(store, args.out, partial=args.partial):
         print(f"wrote {path}")
+    return 0
+
+
+def _driving(args: argparse.Namespace) -> int:
+    """What the driving study's exports give (§4.4.2): r_A's importances and the bias count, Table 5's ratings."""
+    import json
+
+    from .._io import atomic_write
+    from ..study.driving import testing_summary, training_summary
+
+    if not args.answers and not args.ratings:
+        raise ValueError(
+            "give --answers (the training phase's answers.json) and/or --ratings (the testing phase's ratings.csv)"
+        )
+    out = {}
+    for flag in ("answers", "ratings"):
+        path = getattr(args, flag)
+        if path is not None and not path.is_file():
+            raise ValueError(f"--{flag}: no file {path}")
+    if args.answers:
+        t = out["training"] = training_summary(args.answers)
+        imp = ", ".join(f"{k} {v:.2f}" for k, v in t["importance"].items())
+        print(f"training phase: {t['valid']} valid participants of {t['participants']}; importance (1-5): {imp}")
+        if t["bias_effective"] is not None:
+            print(
+                f"  bias question: {t['bias_effective']} of {t['bias_answered']} expect braking to work on sleet (the study: 12 of 14)"
+            )
+        print(f"  r_A from these answers: {t['reproduce']}")
+    if args.ratings:
+        t = out["testing"] = testing_summary(args.ratings)
+        print(
+            f"testing phase (Table 5): {t['raters']} valid raters"
+            + (f", dropped {', '.join(t['dropped'])}" if t["dropped"] else "")
+        )
+        for m, r in t["methods"].items():
+            print(f"  {m}: average rating {r['rating_mean']:.2f} ± {r['rating_std']:.2f} ({r['ratings']} ratings)")
+    if args.out:
+        atomic_write(args.out, json.dumps(out, indent=2))
+        print(f"wrote {args.out}")
     return 0

@@ -11,7 +11,9 @@ The study's two phases with simulated participants (:mod:`~mindgap.teachers.driv
   on the true, sleety world with discrete SAC (:mod:`~mindgap.algorithms.sac_discrete`);
   EPS and DRLHP ask the participants "which is more expected?" (one participant per query);
 * **testing** — *new* participants, recruited the same way, rate 1–10 the greedy rollouts of
-  every method's seeds (and the collision of the sanity item, which must come lowest).
+  every method's seeds (and the collision of the sanity item, which must come lowest); the
+  same episodes are written to ``rollouts.json`` (:mod:`mindgap.data.rollouts_file`) for
+  real people to rate in the study app (``mindgap study``, ``driving-testing`` example).
 
 Jobs, in a :class:`~._runfolder.RunFolder` (finished ones are read back, an interrupted
 learner resumes from its engine checkpoint): ``driving/people``, ``driving/sac``,
@@ -43,6 +45,7 @@ from ..algorithms.expected_policy import ExpectedPolicyConfig
 from ..algorithms.sac import SACConfig
 from ..algorithms.sac_loop import agent_init, greedy_policy, loop_init, rollouts, run_chunk
 from ..checkpoint import load_pytree, save_pytree
+from ..data.rollouts_file import rollout_record, write_rollouts
 from ..envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
 from ..envs.driving.params import LENGTH, SLOWER
 from ..envs.driving.world import DIST_SCALE, EGO_OBS
@@ -429,18 +432,25 @@ def learner_record(cfg: DrivingConfig, world, actors, res: dict) -> dict:
 
 def testing_record(folder: RunFolder, cfg: DrivingConfig, world, people: dict) -> dict:
     """New participants rate every method's greedy rollouts (and the sanity collision) 1–10."""
-    shown, index = [], []
+    shown, index, records = [], [], []
     for m in METHODS:
         rec = folder.done(f"{WORLD}/{m}")
         actors = _load_actors(folder, f"{WORLD}/{m}", world, cfg, rec["seeds"])
         for s in range(rec["seeds"]):
             actor = jax.tree.map(lambda a, s=s: a[s], actors)
-            obs, act, alive, _ = greedy_episodes(world, actor, rng.key(20_000 + s), cfg.shown)
+            obs, act, alive, rew = greedy_episodes(world, actor, rng.key(20_000 + s), cfg.shown)
             shown.append((obs[:, :-1], act, alive))
             index += [(m, s, e) for e in range(cfg.shown)]
+            records += [
+                rollout_record(f"{m}-s{s}-e{e}", m, s, e, obs[e], act[e], alive[e], float(np.asarray(rew[e]).sum()))
+                for e in range(cfg.shown)
+            ]
     (c_obs, c_act, c_alive), _ = sanity_segments(world, world.horizon)
     shown.append((c_obs[None, :-1], c_act[None], c_alive[None]))
     index.append(("sanity", -1, 0))
+    records.append(rollout_record("sanity", "sanity", -1, 0, c_obs, c_act, c_alive, sanity="lowest"))
+    # the same episodes for people to rate (mindgap study, items: {source: file, path: rollouts.json})
+    write_rollouts(folder.root / "rollouts.json", {"name": "driving", "sleet": cfg.sleet}, records)
     obs, act, alive = (jnp.concatenate(x) for x in zip(*shown))
     sanity = len(index) - 1
     ratings = {}

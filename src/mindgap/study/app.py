@@ -200,11 +200,12 @@ def create_app(
 
     def current_item(p) -> str | None:
         """The participant's next item id, or None when all are answered (or no live query waits)."""
-        if study.live:
-            qid = store.claim_live(p["id"], live_lease)
-            return None if qid is None else f"{LIVE_PREFIX}{qid}"
         done = store.answered_ids(p["id"])
-        return next((i for i in json.loads(p["item_order"]) if i not in done), None)
+        fixed = next((i for i in json.loads(p["item_order"]) if i not in done), None)
+        if fixed is not None or not study.live:  # a live study's fixed items (driving's) come first
+            return fixed
+        qid = store.claim_live(p["id"], live_lease)
+        return None if qid is None else f"{LIVE_PREFIX}{qid}"
 
     def item_of(p, item_id: str) -> dict:
         """The item ``item_id`` if it was given to participant ``p`` (else 404)."""
@@ -259,7 +260,7 @@ def create_app(
         ctx.update(
             item=item,
             number=(order.index(item_id) + 1) if item_id in order else len(store.answered_ids(p["id"])) + 1,
-            total=len(order) or None,
+            total=None if study.live else len(order) or None,
             submission=secrets.token_urlsafe(12),
             wait=round(wait, 1),
             scale=(lo, hi, step),

@@ -32,12 +32,13 @@ import re
 from pathlib import Path
 
 PROTOCOLS = ("rating", "preference", "expectation")
-DOMAINS = ("coffee", "grid7", "terrain", "gym")
+DOMAINS = ("coffee", "grid7", "terrain", "gym", "driving")
 SOURCES = {
     "coffee": ("coffee-demos",),
     "grid7": ("random",),
     "terrain": ("random-pairs", "belief-pairs", "file", "live"),
     "gym": ("live",),
+    "driving": ("live", "file"),
 }
 RULES = ("lowest", "max", "min", "answer")
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
@@ -186,6 +187,10 @@ def parse_study(raw, source: str = "study", base_dir: str = ".") -> Study:
             fail("gym studies compare segments: protocol preference or expectation")
         if not isinstance(domain.get("env"), str) or not domain["env"].startswith("gym:"):
             fail("domain.env must name a gymnasium env as gym:ID[,key=value...], e.g. gym:mindgap/NoisyHopper-v0")
+    elif domain["name"] == "driving":  # §4.4.2: live queries (training phase) or rollouts to rate (testing)
+        from .driving import check_domain
+
+        check_domain(domain, protocol, items, fail)
     elif protocol != "rating":
         fail(f"domain {domain['name']} shows demonstrations to rate: protocol rating")
     if domain["name"] == "coffee":
@@ -197,7 +202,8 @@ def parse_study(raw, source: str = "study", base_dir: str = ".") -> Study:
         domain["robots"] = list(robots)
     if items["source"] == "file":
         if not isinstance(items.get("path"), str):
-            fail("items.path must name a preferences file for source: file")
+            what = "a rollouts file" if domain["name"] == "driving" else "a preferences file"
+            fail(f"items.path must name {what} for source: file")
 
     participants = _int(raw.get("participants", 10), "participants", fail, lo=0)
     min_seconds = _num(raw.get("min_seconds", 0), "min_seconds", fail)

@@ -64,6 +64,8 @@ def ratings_csv(store: Store, partial: bool = False) -> str:
     study, items, people, answers = _context(store, partial)
     if study["protocol"] != "rating":
         raise ValueError(f"study {study['name']!r} is a {study['protocol']} study: export preferences, not ratings")
+    if study["domain"]["name"] == "driving":
+        return _driving_ratings(study, items, answers)
     coffee = study["domain"]["name"] == "coffee"
     questions = [q["id"] for q in study["questionnaire"]]
     by_pid: dict[int, dict[str, int]] = {}
@@ -86,6 +88,21 @@ def ratings_csv(store: Store, partial: bool = False) -> str:
     return buf.getvalue()
 
 
+def _driving_ratings(study: dict, items: dict, answers: list) -> str:
+    """A driving testing phase's ratings (§4.4.2, Table 5): one row per rated rollout, with the method,
+    seed and episode it shows and whether the rater failed a sanity item (``mindgap study driving``)."""
+    failed = sanity_failures(items, answers)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["participant", "item", "method", "seed", "episode", "rating", "sanity_failed"])
+    for a in answers:
+        d = items[a["item_id"]]["data"]
+        bad = bool(failed.get(a["participant"]))
+        w.writerow([a["participant"], a["item_id"], d.get("method", ""), d.get("seed", ""), d.get("episode", "")]
+                   + [f"{a['value']:g}", bad])  # fmt: skip
+    return buf.getvalue()
+
+
 def preferences_json(store: Store, partial: bool = False) -> str:
     """The preferences file of a comparison study (fixed items and live queries alike)."""
     study, items, people, answers = _context(store, partial)
@@ -93,6 +110,8 @@ def preferences_json(store: Store, partial: bool = False) -> str:
         raise ValueError(f"study {study['name']!r} is a rating study: export ratings, not preferences")
     records = []
     for a in answers:
+        if study["items"].get("source") == "live" and a["item_id"] in items:
+            continue  # a live study's fixed items (driving's bias question and sanity item) are no training data
         data = _item_data(store, items, a["item_id"])
         if data is None:
             continue
@@ -108,7 +127,8 @@ def preferences_json(store: Store, partial: bool = False) -> str:
                 **({"truth": data["truth"]} if "truth" in data else {}),
             }
         )
-    domain = {k: study["domain"][k] for k in ("name", "world", "belief") if k in study["domain"]}
+    keep = ("name", "world", "belief", "env", "sleet", "traffic", "brake_first", "brake_last")
+    domain = {k: study["domain"][k] for k in keep if k in study["domain"]}
     return json.dumps(preferences_document(study["protocol"], domain, records))
 
 
@@ -180,7 +200,16 @@ def answers_json(store: Store) -> str:
         }
         for p in store.participants()
     ]
-    return json.dumps({"study": study, "participants": people, "answers": answers_table(store)}, indent=1)
+    # each fixed item's id, kind, sanity rule and the plain facts of its data (which side is the
+    # truth, the rated method, ...): enough to read the answers without the store
+    items = [
+        {"id": it["id"], "kind": it["kind"], "sanity": it.get("sanity")}
+        | {k: v for k, v in it["data"].items() if isinstance(v, str | int | float | bool)}
+        for it in store.items()
+    ]
+    return json.dumps(
+        {"study": study, "participants": people, "items": items, "answers": answers_table(store)}, indent=1
+    )
 
 
 def export_all(store: Store, out, partial: bool = False) -> list:

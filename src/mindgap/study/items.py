@@ -18,7 +18,10 @@ Sources:
   the true dynamics and once under a belief (``domain.belief``); which side is the truth
   is drawn per pair and kept in ``truth``;
 * ``file`` — pairs from a preferences file (labels ignored), see :mod:`.prefs_file`;
-* ``live`` — no fixed items: a training run posts its queries (:mod:`.live`).
+* ``live`` — a training run posts its queries (:mod:`.live`); a driving study may show fixed
+  items first (``items.fixed``: the bias-validation question and the sanity item of §4.4.2);
+* driving (:mod:`.driving`) — ``live``, or ``file``: rollouts to rate from a rollouts file
+  (:mod:`mindgap.data.rollouts_file`).
 """
 
 from __future__ import annotations
@@ -64,8 +67,13 @@ def build_items(study: Study) -> list[Item]:
                 check_observation_frames(world)
             except ValueError as e:
                 raise StudyFileError(f"domain.env: {e}") from None
-        return []
-    if src == "coffee-demos":
+        if study.domain["name"] != "driving":
+            return []
+    if study.domain["name"] == "driving":  # §4.4.2: fixed items before live queries, or rollouts to rate
+        from .driving import fixed_items, rollout_items
+
+        items = fixed_items(study) if src == "live" else rollout_items(study)
+    elif src == "coffee-demos":
         items = _coffee(study)
     elif src == "random":
         items = _grid(study)
@@ -119,6 +127,10 @@ def _grid(study: Study) -> list[Item]:
 def load_study_world(study: Study):
     """The world a study shows: a terrain world (a named world or a file relative to the study
     file), or a gymnasium env (``domain.env``, ``gym:ID[,key=value...]``)."""
+    if study.domain["name"] == "driving":
+        from .driving import driving_world
+
+        return driving_world(study.domain)
     if study.domain["name"] == "gym":
         from ..envs.interface import EnvError
         from ..envs.resolve import resolve_env

@@ -47,7 +47,13 @@ class StudyTeacher:
             raise ValueError(
                 f"{db} holds study {study['name']!r}, which does not take live queries (items: {{source: live}})"
             )
-        if world is not None:
+        if world is not None and study["domain"]["name"] == "driving":
+            from .driving import driving_world
+
+            want = driving_world(study["domain"]).name
+            if want != world.name:
+                raise ValueError(f"{db} shows world {want!r}, the run trains on {world.name!r}")
+        elif world is not None:
             want = study["domain"].get("world") or study["domain"].get("env", "")
             if _spec(want) != _spec(world.name) and Path(want).stem != world.name:
                 raise ValueError(f"{db} shows world {want!r}, the run trains on {world.name!r}")

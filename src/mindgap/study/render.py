@@ -12,7 +12,11 @@
 * gymnasium segments (``domain: {name: gym, env: gym:ID}``): always an animated GIF, the env
   drawing itself in each state of the segment
   (:func:`mindgap.plotting.animation.observation_frames`: MuJoCo envs whose observations
-  hold their whole state).
+  hold their whole state);
+* driving segments and rollouts (``domain: {name: driving}``, §4.4.2): always an animated GIF
+  drawn by highway-env, every integration step of every decision
+  (:func:`mindgap.envs.driving.highway.segment_frames`, which states how the scene is set from
+  the segment's observations).
 
 Matplotlib is not thread-safe, so drawing holds one lock; each picture is drawn once
 and written through a rename, then served from the cache folder. A cached file is named
@@ -69,7 +73,7 @@ class Renderer:
         return self._world_digest
 
     def ext(self) -> str:
-        return "gif" if self.study.items.get("animation") or self.study.domain["name"] == "gym" else "png"
+        return "gif" if self.study.items.get("animation") or self.study.domain["name"] in ("gym", "driving") else "png"
 
     def parts(self, item: dict) -> tuple[tuple[str, str], ...]:
         """An item's pictures as ``(part, caption)``: a coffee demonstration's steps
@@ -89,7 +93,7 @@ class Renderer:
 
     def path(self, item: dict, part: str, condition: str) -> Path:
         """The picture of ``part`` (one of :meth:`parts`) of ``item``, drawn on first use."""
-        ext = self.ext() if item["kind"] != "demo" else "png"
+        ext = self.ext() if item["kind"] != "demo" or self.study.domain["name"] == "driving" else "png"
         key = self.key(item, part, condition, ext)
         out = self.cache / (condition or "all") / f"{item['id']}-{part}-{key}.{ext}"
         if out.exists():
@@ -112,6 +116,11 @@ class Renderer:
             save_coffee_step(tmp, d["states"][k], condition or "mobile", spilled)
         elif domain == "grid7":
             save_grid_demo(tmp, d["states"], d["size"])
+        elif domain == "driving":  # highway-env's animation of the segment (or the rated rollout)
+            from ..plotting.animation import save_gif
+            from .driving import frames
+
+            save_gif(tmp, frames(self.study, d["segment"] if part == "demo" else d[part]), fps=DRIVING_FPS, scale=1.0)
         elif domain == "gym":
             from ..plotting.animation import observation_frames, save_gif
 
@@ -127,6 +136,8 @@ class Renderer:
         tmp.replace(out)
 
 
+DRIVING_FPS = 15.0
+"""Frames a second of a driving animation: highway-env's 15 integration steps a decision, in real time."""
 GYM_FPS = 10.0
 """Frames a second of a gymnasium segment's animation (slower than the envs' own 25–125 Hz, so a
 ten-step segment lasts about a second)."""

@@ -276,3 +276,80 @@ def save_animation(frames, path: str | Path, fps: int = SIMULATION_FREQUENCY) ->
     images = [Image.fromarray(np.asarray(f, np.uint8)) for f in frames]
     images[0].save(path, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0)
     return path
+
+
+def segment_frames(obs, act, mask, **scenario) -> list[np.ndarray]:
+    """highway-env's pictures of a recorded segment of the JAX world (a study item, §4.4.2, Fig. 33).
+
+    ``obs [L, d]``, ``act [L]`` or ``[L, 1]`` (meta-action indices) and ``mask [L]`` are one segment
+    (:class:`~mindgap.data.segments.Segments`' layout); ``next_obs`` is not needed: each real step's
+    arrival is drawn by highway-env. ``scenario`` are the world's :func:`make_params` arguments
+    (``sleet``, ``traffic``, ...).
+
+    Exactness: at the start of every decision the highway-env scene is set to the recorded
+    observation — the ego's lateral position, heading, speed and set-points (target lane, target
+    speed), the other cars' positions relative to the ego and speeds, the front car's braking
+    flag, the decision counter — so each decision's first frame shows the recorded state; the
+    decision's 15 integration steps are then highway-env's own simulation of the recorded
+    meta-action, with the braking factor μ recovered from the recorded speeds
+    (:func:`~mindgap.envs.driving.sleet.factor_of_speed`, the sleet model's inverse) and the
+    front car starting to brake where the record says it did, so the in-between frames follow
+    the JAX world's step (the two agree within about a centimetre over an episode:
+    ``tests/envs/test_driving_highway.py``). Only the ego's position along the road is carried
+    over from highway-env's simulation (the observation holds none; the camera follows the ego).
+
+    Returns:
+        1 + 15 · n frames ([H, W, 3] uint8) for n real steps: the start, then every integration
+        step of each decision.
+    """
+    from .params import LANE_WIDTH, SUBSTEPS
+    from .sleet import factor_of_speed
+    from .world import DIST_SCALE, SPEED_SCALE
+
+    obs = np.asarray(obs, np.float64)
+    act = np.asarray(act).reshape(len(obs), -1)[:, 0]
+    n = int(np.asarray(mask, bool).sum())
+    if obs.ndim != 2 or obs.shape[1] < EGO_OBS + 3:
+        raise ValueError(f"a driving segment's observations must be [L, 8 + 3 M], got shape {obs.shape}")
+    env = __getattr__("SleetHighwayEnv")(render_mode="rgb_array", **scenario)  # the class is built on first use
+    try:
+        env.record()
+        env.reset(seed=0, options={"onset": 10**6})  # the front car brakes only where the record says
+
+        def sync(o: np.ndarray, braking_next: bool) -> None:
+            ego = env.vehicle
+            x = ego.position[0]
+            ego.position = np.array([x, o[0] * LANE_WIDTH])
+            ego.heading, ego.speed = float(o[1]), float(o[2] * SPEED_SCALE)
+            lane = int(round(o[3]))
+            ego.target_lane_index = ("0", "1", lane)
+            ego.target_speed = float(o[4] * SPEED_SCALE)
+            ego.speed_index = ego.speed_to_index(ego.target_speed)
+            ego.crashed = bool(o[6] > 0.5)
+            ego.on_state_update()
+            others = o[EGO_OBS:].reshape(-1, 3)
+            for v, (dx, oy, ov) in zip(env.road.vehicles[1:], others):
+                v.position = np.array([x + dx * DIST_SCALE, oy * LANE_WIDTH])
+                v.speed = float(ov * SPEED_SCALE)
+            env.front.braking = bool(o[7] > 0.5) or braking_next
+            env.decisions = int(round(o[5] * int(env.params.horizon)))
+
+        nxt = np.concatenate([obs[1:], obs[-1:]])
+        sync(obs[0], False)
+        env.frames = [env.render()]
+        for t in range(n):
+            # the next observation's set-point is the one the meta-action chose; its speed gives μ
+            v, target = obs[t, 2] * SPEED_SCALE, nxt[t, 4] * SPEED_SCALE
+            mu = 1.0
+            if t + 1 < len(obs) and v - target > BRAKING_MARGIN:
+                mu = float(factor_of_speed(v, target, nxt[t, 2] * SPEED_SCALE, SUBSTEPS)[0])
+            eps = float(np.finfo(np.float32).eps)
+            env._grips = [float(np.clip(mu, eps, 1 - eps)) if np.isfinite(mu) else 1.0]
+            if t > 0:
+                sync(obs[t], False)
+            starts_braking = t + 1 < len(obs) and obs[t, 7] < 0.5 and nxt[t, 7] > 0.5
+            env.front.braking = env.front.braking or starts_braking
+            env.step(int(act[t]))
+        return list(env.frames)
+    finally:
+        env.close()
