@@ -26,6 +26,27 @@ def study_file(tmp: Path, example: str, **changes) -> Path:
     return path
 
 
+def driving_rollouts(path: Path, sleet: float = 1.0) -> Path:
+    """A rollouts file of the driving study's testing phase: two methods' episodes (braking in lane; keeping
+    the speed with grip 0.95) and a collision as the sanity episode (rated lowest)."""
+    import numpy as np
+
+    from mindgap.data.rollouts_file import rollout_record, write_rollouts
+    from mindgap.envs.driving import make_world
+    from mindgap.study.driving import scripted_segment
+
+    p = make_world(sleet=sleet).params
+    recs = []
+    for k, (method, brake) in enumerate((("eps", True), ("sac", False))):
+        seg = scripted_segment(p, 0.95, brake, 3)
+        obs = np.concatenate([seg["obs"][:1], seg["next_obs"]])
+        recs.append(rollout_record(f"{method}-s0-e0", method, 0, 0, obs, seg["act"], seg["mask"], 1.0 + k))
+    crash = scripted_segment(p, 0.95, False, 6)
+    obs = np.concatenate([crash["obs"][:1], crash["next_obs"]])
+    recs.append(rollout_record("sanity", "sanity", -1, 0, obs, crash["act"], crash["mask"], sanity="lowest"))
+    return write_rollouts(path, {"name": "driving", "sleet": sleet}, recs)
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

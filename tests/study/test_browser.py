@@ -200,3 +200,116 @@ def test_screenshots_of_comparison_pages(browser, tmp_path):
             page.close()
         finally:
             server.stop()
+
+
+def _images_drawn(page, timeout: float = 60.0) -> list[int]:
+    """The widths of the page's pictures once all have loaded (polled from here: a driving animation is
+    drawn on first request, which takes seconds, and the page's CSP forbids Playwright's in-page polling)."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while not page.evaluate("[...document.querySelectorAll('main img')].every(i => i.complete)"):
+        assert time.monotonic() < deadline, "the pictures did not load"
+        page.wait_for_timeout(200)
+    return page.eval_on_selector_all("main img", "imgs => imgs.map(i => i.naturalWidth)")
+
+
+def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(browser, tmp_path):
+    """§4.4.2 in the browser: the training phase (Fig. 32's importance questions, the bias-validation
+    question, the collision sanity item, then a live query a run posts, Fig. 33), and the testing phase
+    (1-10 ratings of rollouts); highway-env's animations are shown on every item page."""
+    pytest.importorskip("highway_env", reason="the driving animations are drawn by highway-env")
+    import threading
+
+    import numpy as np
+    from study_helpers import driving_rollouts
+
+    from mindgap.data.segments import Segments
+    from mindgap.envs.driving import make_world
+    from mindgap.study.live import StudyTeacher
+    from mindgap.study.store import Store
+
+    config = study_file(tmp_path, "driving-training", participants=1, min_seconds=0.5)
+    db = tmp_path / "driving.sqlite"
+    server = Server(config, db).start()
+    got = {}
+    try:
+        link = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.goto(link["people"][0]["link"])
+        with page.expect_navigation():
+            page.click("#agree")
+        assert "green car is your autonomous" in page.content()
+        with page.expect_navigation():
+            page.click("#continue")
+        for q, v in (("speed", 3), ("front_distance", 5), ("relative_speed", 3), ("lane_following", 4)):
+            page.check(f"input[name={q}][value='{v}']")
+        _shot(page, "8-driving-questionnaire")
+        with page.expect_navigation():
+            page.click("#continue")
+        items = {it["id"]: it for it in Store(db).items()}
+        for _ in range(2):  # the bias question and the sanity item, in this participant's order
+            item = page.input_value("input[name=item_id]")
+            assert min(_images_drawn(page)) >= 300  # both of highway-env's animations arrived
+            side = items[item]["data"]["effective" if item == "bias" else "safe"]
+            page.check(f"#choice-{side}")
+            if item == "bias":
+                assert "How will your car brake?" in page.text_content("h1")
+                _shot(page, "8-driving-bias-item")
+            with page.expect_navigation():
+                page.click("#submit")
+        assert "Waiting for the next question" in page.content()
+        # a run posts one query (EPS's host teacher); the waiting page refreshes itself and shows it
+        teacher = StudyTeacher(db, make_world(sleet=1.0), timeout=90, poll=0.1, progress=False)
+        data = items["bias"]["data"]
+        seg_a, seg_b = (
+            Segments(*(np.asarray([data[s][f]], bool if f == "mask" else np.float32) for f in Segments._fields))
+            for s in "ab"
+        )
+        run = threading.Thread(target=lambda: got.update(zip(("labels", "answered"), teacher(seg_a, seg_b))))
+        run.start()
+        page.wait_for_selector("input[name=item_id]", state="attached", timeout=30_000)
+        assert "matches your expectation more" in page.text_content("h1")
+        _images_drawn(page)
+        page.check("#choice-b")
+        _shot(page, "8-driving-live-item")
+        with page.expect_navigation():
+            page.click("#submit")
+        run.join(60)
+        with page.expect_navigation():
+            page.click("#finish")
+        assert len(page.text_content("#code").strip()) == 8
+        page.close()
+    finally:
+        server.stop()
+    assert got["answered"].tolist() == [True] and got["labels"].tolist() == [0.0]
+
+    driving_rollouts(tmp_path / "rollouts.json")
+    config = study_file(tmp_path, "driving-testing", participants=1, min_seconds=0.5)
+    server = Server(config, tmp_path / "rate.sqlite").start()
+    try:
+        link = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
+        page = browser.new_page(viewport={"width": 1280, "height": 900})
+        page.goto(link["people"][0]["link"])
+        with page.expect_navigation():
+            page.click("#agree")
+        with page.expect_navigation():
+            page.click("#continue")
+        ratings = {"eps-s0-e0": 8, "sac-s0-e0": 5, "sanity": 1}
+        for k in range(3):
+            assert page.text_content(".progress") == f"item {k + 1} of 3"
+            item = page.input_value("input[name=item_id]")
+            assert _images_drawn(page) == [600]  # highway-env's 600-px road
+            page.fill("#rating", str(ratings[item]))
+            if k == 0:
+                _shot(page, "8-driving-rating-item")
+            with page.expect_navigation():
+                page.click("#submit")
+        assert len(page.text_content("#code").strip()) == 8
+        page.close()
+        r = httpx.get(server.base + "/admin/export/ratings.csv", headers={"Authorization": f"Bearer {ADMIN}"})
+    finally:
+        server.stop()
+    rows = list(csv.DictReader(r.text.splitlines()))
+    assert {row["item"]: float(row["rating"]) for row in rows} == ratings
+    assert {row["sanity_failed"] for row in rows} == {"False"}

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from PIL import Image
-from study_helpers import Participant, hidden, study_file
+from study_helpers import Participant, driving_rollouts, hidden, study_file
 
 from mindgap.cli import main
-from mindgap.data.rollouts_file import RolloutsFileError, read_rollouts, rollout_record, write_rollouts
+from mindgap.data.rollouts_file import RolloutsFileError, read_rollouts
 from mindgap.data.segments import Segments
 from mindgap.envs.driving import FEATURES, importance_weights, make_world
 from mindgap.envs.driving.sleet import factor_mean_std
@@ -154,27 +154,12 @@ def test_the_training_phase_end_to_end_in_process(tmp_path):
     assert line == "mindgap reproduce driving --importance 3.5,5,2.5,3.5"
 
 
-def _rollouts(path, sleet=1.0):
-    """Two methods' episodes (braking in lane, and a lane change), and a collision as the sanity episode."""
-    world = make_world(sleet=sleet)
-    p = world.params
-    recs = []
-    for k, (method, brake) in enumerate((("eps", True), ("sac", False))):
-        seg = scripted_segment(p, 0.95, brake, 5)
-        obs = np.concatenate([seg["obs"][:1], seg["next_obs"]])
-        recs.append(rollout_record(f"{method}-s0-e0", method, 0, 0, obs, seg["act"], seg["mask"], 1.0 + k))
-    crash = scripted_segment(p, 0.95, False, 6)
-    obs = np.concatenate([crash["obs"][:1], crash["next_obs"]])
-    recs.append(rollout_record("sanity", "sanity", -1, 0, obs, crash["act"], crash["mask"], sanity="lowest"))
-    return write_rollouts(path, {"name": "driving", "sleet": sleet}, recs)
-
-
 RATINGS = {"p-001": {"eps-s0-e0": 8, "sac-s0-e0": 4, "sanity": 1}, "p-002": {"eps-s0-e0": 6, "sac-s0-e0": 5, "sanity": 2},
            "p-003": {"eps-s0-e0": 1, "sac-s0-e0": 9, "sanity": 5}}  # fmt: skip
 
 
 def test_the_testing_phase_rates_a_rollouts_file_and_gives_table_5_s_ratings(tmp_path):
-    _rollouts(tmp_path / "rollouts.json")
+    driving_rollouts(tmp_path / "rollouts.json")
     assert len(read_rollouts(tmp_path / "rollouts.json")["records"]) == 3
     config = study_file(tmp_path, "driving-testing", participants=3, min_seconds=0)
     study, store, renderer = open_study(config, tmp_path / "test.sqlite")
@@ -203,15 +188,62 @@ def test_the_testing_phase_rates_a_rollouts_file_and_gives_table_5_s_ratings(tmp
 
 
 def test_a_rollouts_file_of_another_road_or_shape_is_refused(tmp_path):
-    _rollouts(tmp_path / "rollouts.json", sleet=0.5)
+    driving_rollouts(tmp_path / "rollouts.json", sleet=0.5)
     with pytest.raises(StudyFileError, match="^items.path: .* holds rollouts of"):
         open_study(study_file(tmp_path, "driving-testing"), tmp_path / "x.sqlite")
     doc = json.loads((tmp_path / "rollouts.json").read_text())
     doc["records"][1]["obs"] = doc["records"][1]["obs"][:-1]
     (tmp_path / "bad.json").write_text(json.dumps(doc))
-    with pytest.raises(RolloutsFileError, match="record 1: obs must be 6 rows of 11 numbers"):
+    with pytest.raises(RolloutsFileError, match="record 1: obs must be 4 rows of 11 numbers"):
         read_rollouts(tmp_path / "bad.json")
     doc["records"][1]["item"] = doc["records"][0]["item"]
     (tmp_path / "bad.json").write_text(json.dumps(doc))
     with pytest.raises(RolloutsFileError, match="record 1: item 'eps-s0-e0' must be a unique name"):
         read_rollouts(tmp_path / "bad.json")
+
+
+@pytest.mark.slow
+def test_eps_learns_from_people_answering_the_driving_study_live(tmp_path):
+    """``mindgap eps --fast --teacher study:STORE`` on the driving world while two scripted people answer
+    through the app (after the fixed items): every query of the run is answered, and the answers are the
+    study's export."""
+    config = study_file(tmp_path, "driving-training", participants=2, min_seconds=0)
+    study, store, renderer = open_study(config, tmp_path / "live.sqlite")
+    client = TestClient(create_app(study, store, renderer))
+    stop = threading.Event()
+
+    def person(token):  # prefers the segment whose car ends slower: a braking person
+        who = Participant(client, token, lambda item: "a")
+        for _ in range(3):
+            who.step()  # consent, instructions, questionnaire
+        while not stop.is_set():
+            page = who.get()
+            if 'name="item_id"' not in page:
+                time.sleep(0.05)
+                continue
+            item = hidden(page, "item_id")
+            data = next((it["data"] for it in store.items() if it["id"] == item), None)
+            if data is None:
+                data = json.loads(store.live_query(int(item.split("-")[-1]))["data"])
+            v = [np.asarray(data[s]["next_obs"])[np.asarray(data[s]["mask"])][-1, 2] for s in "ab"]
+            choice = "a" if v[0] <= v[1] else "b"
+            who.rate = lambda _item, c=choice: c
+            who.step()
+
+    people = [threading.Thread(target=person, args=(p["token"],), daemon=True) for p in store.participants()]
+    for t in people:
+        t.start()
+    out = tmp_path / "run"
+    argv = ["eps", "--env", "mindgap.envs.driving:make_world", "--fast", "--teacher", f"study:{store.path}"]
+    try:
+        assert main([*argv, "--answer-timeout", "120", "--quiet", "--out", str(out)]) == 0
+    finally:
+        stop.set()
+        for t in people:
+            t.join(10)
+    summary = json.loads((out / "summary.json").read_text())
+    counts = store.live_counts()
+    assert counts["answered"] == summary["queries"] > 0 and counts.get("expired", 0) == 0
+    export_all(store, tmp_path / "export", partial=True)
+    prefs = json.loads((tmp_path / "export" / "preferences.json").read_text())
+    assert len(prefs["records"]) == summary["queries"] and prefs["protocol"] == "expectation"
