@@ -95,6 +95,14 @@ def test_driving_fast_table5_behaviours_figures_and_resume(stand_ins, tmp_path, 
     # the raters expect braking (the biased ones by the stand-in π_H): the in-lane brakers are rated above SAC
     ratings = [r for r in csv.DictReader((out / "ratings.csv").open()) if r["valid"] == "True"]
     assert {r["method"] for r in ratings} == {"eps", "sac", "drlhp", "sanity"}
+    # the same episodes in a rollouts file, for people to rate in the study app's driving-testing study
+    from mindgap.data.rollouts_file import read_rollouts
+
+    shown = read_rollouts(out / "rollouts.json")
+    assert shown["domain"] == {"name": "driving", "sleet": 1.0}
+    assert sorted((r["method"], r["seed"], r["episode"]) for r in shown["records"]) == sorted(
+        {(r["method"], int(r["seed"]), int(r["episode"])) for r in ratings}
+    )
     people = json.loads((out / "jobs" / "driving__people.json").read_text())
     assert people["valid"] == 4 and len(people["engineered_weights"]) == 4
     assert sum(people["engineered_weights"]) == pytest.approx(1.0, abs=1e-5)
