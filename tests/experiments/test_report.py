@@ -90,9 +90,9 @@ def test_report_shows_every_experiment_with_its_claims_and_marks_fast_and_partia
     assert md.count("`--fast`: numbers mean nothing") == 1
     assert "partial: 1 jobs missing" in md and "`w/job2`" in md
     assert "2 of 3 jobs finished" in md
-    # the tally counts the full runs' claims only: 6 experiments with 1 held + 1 not (lambda twice),
+    # the tally counts the full runs' claims only: 7 experiments with 1 held + 1 not (lambda twice),
     # table1 1 + 1, coffee 1 held (its undecided ordering is left out)
-    assert "Over the full-preset runs: 8 ✓, 7 ✗." in md
+    assert "Over the full-preset runs: 9 ✓, 8 ✗." in md
     assert (
         "| ✓ | reversed, tied belief: GeReL has the lowest d(R) of the four methods | GeReL 2, best other SERD 3 |"
         in md
