@@ -660,7 +660,9 @@ def _design_verdict(name: str, ref: dict) -> str:
 
 
 def _se(a: dict, b: dict) -> float:
-    """Standard error of the difference of two rows' mean final returns (seeds independent)."""
+    """Standard error of the difference of two rows' mean final returns (seeds independent); NaN with one seed."""
+    if min(a["seeds"], b["seeds"]) < 2:
+        return float("nan")
     return float(np.sqrt(a["return_std"] ** 2 / max(a["seeds"], 1) + b["return_std"] ** 2 / max(b["seeds"], 1)))
 
 
@@ -672,6 +674,8 @@ def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) ->
     * hopper, cheetah: PrefBias (the largest budget) above PEBBLE — by more than two standard
       errors of the difference;
     * SAC's level (:data:`LEVELS`): SAC on the belief env reaches the published level.
+
+    With one seed there is no standard error, and the comparisons are not met.
     """
     base = name.removesuffix("-mjx")
     sac = next((r for r in rows if r["method"] == "sac"), None)
