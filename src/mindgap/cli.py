@@ -5,7 +5,7 @@ mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
 mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--out DIR]
-mindgap reproduce nav|priors|sampling|eps|lambda [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
+mindgap reproduce nav|priors|sampling|eps|lambda|gym [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap design check WORLD …               (can a world show PrefBias's effect? see mindgap.commands.design)

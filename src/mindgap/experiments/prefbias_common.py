@@ -355,6 +355,7 @@ def run_experiment(
     references=("reference",),
     name: str = "this experiment",
     only: str | None = None,
+    check=experiment_world,
 ):
     """Run (or resume) ``jobs`` in the run folder ``out``, then ``write_outputs(cfg, out, records)``.
 
@@ -362,6 +363,8 @@ def run_experiment(
     makes a job's record (:func:`run_jobs`); ``references`` are the methods that learn nothing;
     ``name`` is how a refused world is told (every world is checked before anything is written).
     ``only`` runs one job (and those whose records it reads) and writes no outputs.
+    ``check(world, name)`` refuses a job's world with one line (default :func:`experiment_world`;
+    the ``gym`` experiment checks its domain names).
     Returns the summary, with ``missing_jobs``: how many jobs have no record yet; with
     ``only``, ``{"job": its record}``.
     """
@@ -370,7 +373,7 @@ def run_experiment(
     if only is not None:
         jobs = select_job(jobs, only, name)
     for spec in dict.fromkeys(job.world for job in jobs):
-        experiment_world(spec, name)
+        check(spec, name)
     folder = RunFolder(out, cfg, fresh=fresh)
     rerun = registry.command(name, cfg, out) if name in registry.NAMES else ""
     records = run_jobs(

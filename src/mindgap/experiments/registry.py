@@ -23,6 +23,7 @@ MODULES = {
     "sampling": "prefbias_sampling",
     "eps": "eps_table",
     "lambda": "eps_lambda",
+    "gym": "prefbias_gym",
     "driving": "driving",
 }
 """Experiment name → module under :mod:`mindgap.experiments` (each has ``preset(name)``)."""

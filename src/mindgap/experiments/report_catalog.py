@@ -229,6 +229,37 @@ CATALOG: dict[str, Entry] = {
         ),
         "docs/experiments/eps.md",
     ),
+    "gym": Entry(
+        "PrefBias on the control domains",
+        "§3.4.2.2–3, §3.4.3",
+        (
+            Item(
+                "Fig. 18",
+                "Learning curves on the lunar lander with an invisible solar wind, under the true reward: "
+                "both PrefBias and PEBBLE fail to match SAC's return.",
+                ("curves_lunar*.png", "trajectories_lunar*.png", "rollouts/lunar*.gif"),
+                ("curves.csv", "results.csv"),
+                ("Figs. 18–20",),
+            ),
+            Item(
+                "Figs. 19–20",
+                "Learning curves on the hopper and the cheetah with hidden noise: PEBBLE stays near a return of "
+                "0 on the hopper while PrefBias does much better (with a larger variance); on the cheetah "
+                "PrefBias comes closer to SAC than PEBBLE.",
+                (
+                    "curves_hopper*.png",
+                    "curves_cheetah*.png",
+                    "trajectories_hopper*.png",
+                    "trajectories_cheetah*.png",
+                    "rollouts/hopper*.gif",
+                    "rollouts/cheetah*.gif",
+                ),
+                ("curves.csv", "results.csv"),
+                ("Design check",),
+            ),
+        ),
+        "docs/experiments/gym.md",
+    ),
 }
 
 _LABELS = {"gerel": "GeReL", "serd": "SERD", "gerel-minus": "GeReL⁻", "maxent-irl": "MaxEnt-IRL"}

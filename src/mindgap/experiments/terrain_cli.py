@@ -1,4 +1,6 @@
-"""The terrain-world experiments on the command line: ``mindgap reproduce nav|priors|sampling|eps|lambda``.
+"""The terrain-world experiments on the command line: ``mindgap reproduce nav|priors|sampling|eps|lambda``,
+and ``gym`` (the control domains, whose ``--worlds`` are domain names: lunar, hopper, cheetah, hopper-mjx,
+cheetah-mjx; :mod:`~.prefbias_gym`).
 
 mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR] [--fresh] [--quiet] [--assemble]
 
@@ -20,7 +22,7 @@ from pathlib import Path
 from . import registry
 from ._runfolder import print_run
 
-NAMES = ("nav", "priors", "sampling", "eps", "lambda")
+NAMES = ("nav", "priors", "sampling", "eps", "lambda", "gym")
 
 
 def reproduce(args) -> int:

@@ -336,7 +336,11 @@ def reward_error(world, reward_fn, params) -> np.ndarray:
     Returns:
         [seeds] float.
     """
-    obs, act, nxt, truth = reward_grid(world)
+    return reward_error_on(*reward_grid(world), reward_fn, params)
+
+
+def reward_error_on(obs, act, nxt, truth, reward_fn, params) -> np.ndarray:
+    """:func:`reward_error` on given points: transitions ``(obs, act, nxt)`` and the true reward ``truth`` [N]."""
     learned = np.asarray(jax.vmap(lambda p: reward_fn(p, obs, act, nxt))(params), np.float64)
-    diff = _zscore(learned) - _zscore(truth)[None]
+    diff = _zscore(learned) - _zscore(np.asarray(truth, np.float64))[None]
     return np.sqrt((diff**2).mean(-1))

@@ -1,0 +1,270 @@
+"""The control-domain experiment ``mindgap reproduce gym`` (Figs. 18–20).
+
+The default tests run the ``--fast`` preset through the CLI on the lander with the learners'
+``train``, the belief fit, the reward error and the rollout animation replaced by stand-ins
+(the reference job — random episodes on gymnasium, the identifiability conditions — is
+real); they check the run folder, the outputs, the claims' logic on hand-made rows, the
+measured conditions and the refusals. The ``slow`` test runs the real ``--fast`` preset on
+all three domains (several minutes on a 2-core CPU with a cold compilation cache).
+"""
+
+import csv
+import json
+from types import SimpleNamespace
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from mindgap.algorithms import pbrl, prefbias
+from mindgap.cli import main
+from mindgap.envs.gym_world import gym_world_from_spec
+from mindgap.experiments import prefbias_common as pc
+from mindgap.experiments import prefbias_gym as pg
+from mindgap.experiments import registry
+from report_check import check_report
+
+FINAL = {"prefbias": -150.0, "pebble": -200.0, "sac": 100.0}
+LEVEL = 250.0
+
+
+def rows(path):
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def _fake_result(cfg, seeds, method, level=False):
+    steps = range(cfg.eval_every, cfg.total_steps + 1, cfg.eval_every)
+    final = LEVEL if level else FINAL[method]
+    curve = [(s, t, final * t / cfg.total_steps + s, cfg.queries) for t in steps for s in range(seeds)]
+    path = np.linspace(0, 1, 40)[:, None] * np.ones((1, 8))
+    carry = SimpleNamespace(
+        loop=SimpleNamespace(sac=SimpleNamespace(params=SimpleNamespace(actor={"w": jnp.zeros((seeds, 3))}))),
+        model=SimpleNamespace(
+            params="ensemble", posterior=SimpleNamespace(reward=SimpleNamespace(mean="posterior mean"))
+        ),
+    )
+    return {
+        "curve": curve,
+        "final_returns": np.full((seeds, 5), final) + np.arange(seeds)[:, None],
+        "paths": [[path, path[:10], path[:5]] for _ in range(seeds)],
+        "carry": carry,
+    }
+
+
+@pytest.fixture
+def stand_ins(monkeypatch):
+    """Replace training, the belief fit, the reward error and the animation; record the calls."""
+    calls = []
+
+    def fake_prefbias(world, cfg, seeds=1, teacher="biased", **kw):
+        calls.append(("prefbias", world.name, cfg.queries, tuple(world.beliefs)))
+        assert teacher == "biased" and kw["out"].parent.name == "train"
+        return _fake_result(cfg, seeds, "prefbias")
+
+    def fake_pbrl(world, cfg, seeds=1, teacher="true", **kw):
+        level = "LunarLander-v3" in world.name
+        calls.append(("sac-level" if level else cfg.method, world.name, cfg.queries, tuple(world.beliefs)))
+        assert teacher == ("true" if cfg.method == "sac" else "biased")
+        return _fake_result(cfg, seeds, cfg.method, level)
+
+    def fake_fit(belief_world, cfg, *, true_world=None, **kw):
+        calls.append(("fit", belief_world.name, cfg.transitions, ()))
+        record = {"belief_env": belief_world.name, "config": {"dynamics": {"hidden": [8, 8]}}, "held_out_log_lik": 1.0}
+        return "the fitted model", record
+
+    def fake_error(world, cfg, fn, params):
+        return np.full(1, {"posterior mean": 0.5, "ensemble": 1.2}[params])
+
+    def fake_draw(path, world, actor):
+        assert actor["w"].shape == (3,)  # seed 0's actor
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"GIF89a")
+
+    monkeypatch.setattr(prefbias, "train", fake_prefbias)
+    monkeypatch.setattr(pbrl, "train", fake_pbrl)
+    monkeypatch.setattr(pg, "fit_learned_belief", fake_fit)
+    monkeypatch.setattr(pg, "reward_error", fake_error)
+    monkeypatch.setattr(pg, "draw_rollout", fake_draw)
+    return calls
+
+
+def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_ins, tmp_path, capsys):
+    out = tmp_path / "gym"
+    argv = ["reproduce", "gym", "--fast", "--quiet", "--worlds", "lunar", "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    learners = [c for c in stand_ins if c[0] != "fit"]
+    # SAC, PEBBLE, PrefBias (30 queries) on the windy lander, each with the vacuum belief; SAC in the vacuum
+    vacuum = "gym:LunarLander-v3,continuous=True,max_episode_steps=200"
+    windy = "gym:mindgap/SolarWindLander-v0,max_episode_steps=200"
+    assert learners == [
+        ("sac", windy, 0, (vacuum,)),
+        ("pebble", windy, 30, (vacuum,)),
+        ("prefbias", windy, 30, (vacuum,)),
+        ("sac-level", vacuum, 0, ()),
+    ]
+    assert {c[1] for c in stand_ins if c[0] == "fit"} == {vacuum}
+    assert len(list((out / "jobs").glob("*.json"))) == 5  # and the reference
+    results = {r["method"]: r for r in rows(out / "results.csv")}
+    assert set(results) == {"prefbias", "pebble", "sac", "sac-level"}
+    reference = json.loads((out / "jobs" / "lunar__reference.json").read_text())
+    rand = reference["random_return"]
+    assert rand < 0 and 0 < reference["random_length"] <= 200
+    for m in ("prefbias", "pebble", "sac"):
+        assert float(results[m]["return_mean"]) == FINAL[m]
+        norm = (FINAL[m] - rand) / (FINAL["sac"] - rand)
+        assert float(results[m]["normalised_mean"]) == pytest.approx(norm, abs=1e-4)
+    gifs = {m: results[m]["rollout"] for m in results}
+    assert gifs == {
+        f"{m}": f"rollouts/lunar__{k}.gif"
+        for m, k in (("prefbias", "prefbias-q30"), ("pebble", "pebble-q30"), ("sac", "sac"), ("sac-level", "sac-level"))
+    }
+    assert (
+        float(results["prefbias"]["reward_error_mean"]) == 0.5 and float(results["pebble"]["reward_error_mean"]) == 1.2
+    )
+    assert float(results["sac-level"]["return_mean"]) == LEVEL and results["sac-level"]["env"] == vacuum
+    assert "better_route" not in results["sac"]  # no map, no routes
+    assert len(rows(out / "curves.csv")) == 4 * 3  # learners × evaluations (1 seed)
+    summary = json.loads((out / "summary.json").read_text())
+    claims = {c["text"]: c["held"] for c in summary["claims"]}
+    assert claims == {
+        "lunar: neither PbRL method matches SAC (each below it by more than 2 standard errors)": False,  # one seed
+        "lunar: SAC on gym:LunarLander-v3,continuous=True reaches 200 (the 'solved' score of the Gym "
+        "documentation (dissertation §3.4.2.2))": True,
+    }
+    # the conditions are measured; the lander's reward shapes by the next state and its episodes end early
+    conds = summary["conditions"]["lunar"]
+    assert [c["met"] for c in conds] == [True, False, False, None, True]
+    assert "| lunar | 1 ✓, 2 ✗, 3 ✗, 4 –, 5 ✓ (learned belief; no design check) |" in printed
+    assert "no design check" in printed and "| lunar | PrefBias (30 queries) | −150.0 ± 0.0 |" in printed
+    for name in ("curves_lunar.png", "trajectories_lunar.png", "rollouts/lunar__sac.gif", "table.md"):
+        assert (out / name).stat().st_size > 0, name
+    record = json.loads((out / "jobs" / "lunar__prefbias-q30.json").read_text())
+    assert record["belief_model"]["belief_env"] == vacuum and len(record["paths"][0]) == pg.PATH_EPISODES
+    assert record["command"] == f"mindgap reproduce gym --fast --worlds lunar --out {out} --job lunar/prefbias-q30"
+    # a rerun computes nothing and prints the same
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
+    n = len(stand_ins)
+    assert main(argv) == 0
+    assert capsys.readouterr().out == printed and len(stand_ins) == n
+    assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
+    check_report(out, tmp_path / "report", "gym")
+
+
+def test_the_claims_on_hand_made_rows():
+    def row(method, ret, std=10.0, queries=800, seeds=5):
+        return dict(
+            method=method, label=f"{method} {queries}", return_mean=ret, return_std=std, seeds=seeds, queries=queries
+        )
+
+    held = {
+        c["text"]: c["held"]
+        for c in pg.domain_claims("lunar", [row("prefbias", 50), row("pebble", 80), row("sac", 200)])
+    }
+    assert list(held.values()) == [True]
+    # PEBBLE within two standard errors of SAC: it matches
+    held = {
+        c["text"]: c["held"]
+        for c in pg.domain_claims("lunar", [row("prefbias", 50), row("pebble", 190), row("sac", 200)])
+    }
+    assert list(held.values()) == [False]
+    for name in ("hopper", "cheetah", "cheetah-mjx"):
+        rows_ = [row("prefbias", 900, queries=200), row("prefbias", 1500), row("pebble", 300), row("sac", 3000)]
+        (c,) = pg.domain_claims(name, rows_)
+        assert c["held"] and c["text"] == f"{name}: prefbias 800 above pebble 800 (by more than 2 standard errors)"
+        (c,) = pg.domain_claims(name, [row("prefbias", 310, std=50), row("pebble", 300, std=50), row("sac", 3000)])
+        assert not c["held"]  # above, but within two standard errors
+    level = {**row("sac-level", 2000.0), "steps": 1_000_000}
+    claims = pg.domain_claims("hopper", [row("prefbias", 1500), row("pebble", 300)], level_row=level)
+    assert [c["held"] for c in claims] == [True, True] and "after 1000000 steps" in claims[1]["measured"]
+    claims = pg.domain_claims("cheetah", [], level_row={**level, "return_mean": 9000.0})
+    assert [c["held"] for c in claims] == [False]  # below the RL Zoo's 9535 − 100
+    assert pg.domain_claims("lunar", [row("sac", 200)]) == []  # nothing to compare
+    (c,) = pg.domain_claims("hopper", [row("prefbias", 1500, std=0.0, seeds=1), row("pebble", 300, std=0.0, seeds=1)])
+    assert not c["held"] and "2 SE nan" in c["measured"]  # one seed: no standard error
+
+
+def test_the_conditions_are_measured_per_domain():
+    """The lander's reward shapes by the next state and its random episodes end early; the cheetah's runs to the horizon."""
+    cfg = pg.preset("fast")
+    for spec, early in (
+        ("gym:mindgap/SolarWindLander-v0,max_episode_steps=200", True),
+        ("gym:mindgap/NoisyHalfCheetah-v0,max_episode_steps=50", False),
+    ):
+        world = gym_world_from_spec(spec)
+        rets, lens = pg.random_host(world, 3, 0)
+        assert np.all(np.isfinite(rets)) and np.all((1 <= lens) & (lens <= world.horizon))
+        ended = float(np.mean(lens < world.horizon))
+        assert (ended > 0) == early
+        conds = pg.conditions(world, cfg, ended, {"config": {"dynamics": {"hidden": [8, 8]}}})
+        assert [c["met"] for c in conds] == [True, False, not early, None, True]
+        assert "of random-action transitions" in conds[1]["why"]
+
+
+def test_the_reward_error_is_zero_for_the_person_s_reward_and_two_for_its_reverse():
+    world = gym_world_from_spec("gym:mindgap/SolarWindLander-v0,max_episode_steps=100")
+    cfg = pg.preset("fast")
+
+    def scaled(p, obs, act, nxt):
+        import jax
+
+        return p * jax.vmap(lambda o, a, n: world.env.reward(o, a, n, world.params))(obs, act, nxt) + 3.0
+
+    err = pg.reward_error(world, cfg, scaled, jnp.array([2.0, -1.0]))
+    np.testing.assert_allclose(err, [0.0, 2.0], atol=1e-4)
+
+
+def test_bad_input_is_refused_with_one_line(tmp_path, capsys):
+    for extra, says in (
+        (["--worlds", "mars"], "gym has no domain 'mars': choose from lunar, hopper, cheetah, hopper-mjx, cheetah-mjx"),
+        (["--env", "gym:Pendulum-v1"], "gym has no domain 'gym:Pendulum-v1'"),
+        (["--seeds", "0"], "--seeds must be at least 1"),
+        (["--participants", "3"], "--participants belongs to the coffee study"),
+    ):
+        out = tmp_path / "gym"
+        assert main(["reproduce", "gym", "--fast", *extra, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert says in err and err.count("\n") == 1 and "Traceback" not in err, err
+        assert not out.exists()
+
+
+def test_the_presets_and_the_jobs():
+    full = pg.preset("full")
+    keys = [j.key for j in pg.jobs(full)]
+    for w in ("lunar", "hopper", "cheetah"):
+        assert [k for k in keys if k.startswith(w + "/")] == [
+            f"{w}/{n}"
+            for n in ("reference", "sac", "pebble-q800", "prefbias-q200", "prefbias-q400", "prefbias-q800", "sac-level")
+        ]
+    by = {j.key: j for j in pg.jobs(full)}
+    assert full.seeds == 5 and by["hopper/prefbias-q400"].cfg.total_steps == pg.FULL_STEPS["hopper"]
+    assert by["cheetah/sac-level"].cfg.total_steps == pg.LEVELS["cheetah"].steps == 1_000_000
+    assert by["lunar/pebble-q800"].cfg.absorbing_state == "single" and by["lunar/prefbias-q800"].cfg.prefbias.absorbing
+    assert pc.teacher_of(by["lunar/prefbias-q800"]) == "biased" and pc.teacher_of(by["lunar/sac"]) == "true"
+    # the learners share one schedule
+    pb, peb, sac = (by[f"lunar/{n}"].cfg for n in ("prefbias-q800", "pebble-q800", "sac"))
+    for name in ("total_steps", "chunk", "eval_every", "eval_episodes", "sac", "feedback_every", "segment"):
+        assert getattr(pb, name) == getattr(peb, name), name
+    assert pb.sac == sac.sac and pb.total_steps == sac.total_steps
+    assert registry.preset_of("gym", full) == "full" and registry.preset_of("gym", pg.preset("fast")) == "fast"
+    assert registry.command("gym", pg.preset("fast"), "runs/x") == "mindgap reproduce gym --fast --out runs/x"
+
+
+@pytest.mark.slow
+def test_gym_fast_for_real(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    out = tmp_path / "gym"
+    assert main(["reproduce", "gym", "--fast", "--quiet", "--out", str(out)]) == 0
+    results = rows(out / "results.csv")
+    assert sorted((r["world"], r["method"]) for r in results) == sorted(
+        (w, m) for w in ("lunar", "hopper", "cheetah") for m in ("prefbias", "pebble", "sac", "sac-level")
+    )
+    for r in results:
+        assert np.isfinite(float(r["return_mean"]))
+        if r["method"] in ("prefbias", "pebble"):
+            assert 0 <= float(r["reward_error_mean"]) <= 2
+    for w in ("lunar", "hopper", "cheetah"):
+        assert (out / f"rollouts/{w}__prefbias-q30.gif").stat().st_size > 0
+        assert (out / f"curves_{w}.png").stat().st_size > 0
