@@ -81,7 +81,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"{part.label:16s} {what:20s} {n:4d} jobs  -> {folders[part.label]}")
         print(f"{args.spec}: {len(spec.parts)} parts, {total} jobs; backend {kw['backend']}")
         return 0
-    result = sweep.run_parts(list(spec.parts), folders, fresh=args.fresh, progress=not args.quiet, **kw)
+    command = f"mindgap sweep {args.spec}" + (f" --out {args.out}" if args.out else "")
+    result = sweep.run_parts(
+        list(spec.parts), folders, fresh=args.fresh, progress=not args.quiet, command=command, **kw
+    )
     csv_path = sweep.write_store(root, list(spec.parts), folders, result, str(args.spec))
     for label, summary in result.summaries.items():
         missing = summary.get("missing_jobs") or 0

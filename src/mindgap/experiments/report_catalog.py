@@ -56,6 +56,22 @@ _TABLE3 = """| domain | EPS | SAC | DRLHP | PS |
 | D3 | 96.80 (1.16) | 94.47 (2.77) | −50.76 (56.49) | −178.76 (63.88) |
 | D4 | 92.37 (1.80) | 93.27 (2.03) | 26.52 (49.02) | 90.11 (14.79) |"""
 
+GRID = Entry(
+    "Grid sweep",
+    "a sweep file's grid",
+    (
+        Item(
+            "Grid",
+            "Learners × worlds × settings of a sweep file: the dissertation has no number to set beside these.",
+            (),
+            ("results.csv", "curves.csv", "summary.json"),
+            ("Grid sweep",),
+        ),
+    ),
+    "docs/sweeps.md",
+)
+"""The entry of a grid sweep's run folder (``mindgap sweep``), which no named experiment made."""
+
 CATALOG: dict[str, Entry] = {
     "table1": Entry(
         "GeReL on the grid world",

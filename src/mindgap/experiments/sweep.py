@@ -67,10 +67,11 @@ def part_jobs(part: Part, out: Path, *, cpus: float = 1.0, gpus: float = 0.0) ->
     ]
 
 
-def assemble(part: Part, out: Path, *, progress: bool = False) -> dict:
-    """Write the part's outputs from its finished records; its summary (``missing_jobs`` included)."""
+def assemble(part: Part, out: Path, *, progress: bool = False, command: str = "") -> dict:
+    """Write the part's outputs from its finished records; its summary (``missing_jobs`` included).
+    ``command`` is the line that runs the sweep (a grid's ``progress.json`` keeps it)."""
     if part.name == "grid":
-        return sweep_grid.assemble(part.config, out)
+        return sweep_grid.assemble(part.config, out, command)
     return registry.module(part.name).run(
         part.config, out, fresh=False, progress=progress, assemble_only=True, only=None
     )
@@ -95,12 +96,14 @@ def run_parts(
     cpus: float = 1.0,
     gpus: float = 0.0,
     desc: str = "sweep",
+    command: str = "",
     **backend_kw,
 ) -> SweepResult:
     """Run every part's unfinished jobs on ``backend``, then assemble each part in ``folders[label]``.
 
     A part's folder made with another configuration is refused before anything runs
-    (``fresh`` empties the parts' finished jobs instead). ``backend_kw`` go to
+    (``fresh`` empties the parts' finished jobs instead). ``command`` is the line that runs
+    the sweep (kept in a grid's ``progress.json``). ``backend_kw`` go to
     :func:`~.backends.run` (``workers``, ``address``, ``retries``).
     """
     jobs = []
@@ -111,7 +114,7 @@ def run_parts(
     summaries, errors = {}, {}
     for part in parts:
         try:
-            summaries[part.label] = assemble(part, folders[part.label])
+            summaries[part.label] = assemble(part, folders[part.label], command=command)
         except RuntimeError as e:  # no finished job to assemble
             errors[part.label] = str(e)
     return SweepResult(outcome, summaries, errors)

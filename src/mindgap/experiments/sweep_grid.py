@@ -43,7 +43,7 @@ class GridConfig:
     """One job per seed with this ``seed`` (then ``seeds`` is 1)."""
     params: tuple[tuple[str, tuple], ...] = ()
     """The hyperparameter grid: ``(field, values)``; a dotted field reaches inside (``sac.lr``);
-    a field applies to the methods whose configuration has it."""
+    a field applies to the methods that take it (:func:`takes`)."""
     reference: pc.ReferenceConfig = field(default_factory=pc.ReferenceConfig)
 
 
@@ -56,6 +56,15 @@ def base_configs(preset: str) -> dict:
         "drlhp": dataclasses.replace(learn.pebble, method="drlhp", explore_steps=0, reset_critic=False),
         "prefbias": learn.prefbias,
     }
+
+
+SAC_FIELDS = ("total_steps", "chunk", "eval_every", "eval_episodes", "sac")
+"""The settings SAC on the true reward takes from a grid (it asks no queries: the feedback settings pass it by)."""
+
+
+def takes(method: str, cfg, path: str) -> bool:
+    """Whether ``method`` (configured by ``cfg``) takes the grid's setting ``path``."""
+    return has_field(cfg, path) and (method != "sac" or path.split(".")[0] in SAC_FIELDS)
 
 
 def has_field(cfg, path: str) -> bool:
@@ -84,7 +93,7 @@ def _slug(v) -> str:
 def cells(grid: GridConfig, method: str) -> list[tuple[dict, object]]:
     """``(the cell's settings, the method's configuration)`` for each hyperparameter cell of ``method``."""
     base = base_configs(grid.preset)[method]
-    names = [n for n, _ in grid.params if has_field(base, n)]
+    names = [n for n, _ in grid.params if takes(method, base, n)]
     values = dict(grid.params)
     out = []
     for combo in itertools.product(*(values[n] for n in names)):
@@ -124,14 +133,15 @@ def run_job(grid: GridConfig, out: str, key: str) -> None:
     pc.run_jobs(folder, [job], seeds, fresh=False, progress=False, assemble_only=False)
 
 
-def assemble(grid: GridConfig, out: Path) -> dict:
+def assemble(grid: GridConfig, out: Path, command: str = "") -> dict:
     """``results.csv`` (a row per learner cell: return, normalised score, routes, errors),
-    ``curves.csv``, ``table.md`` and ``summary.json`` from the finished cells."""
+    ``curves.csv``, ``table.md`` and ``summary.json`` from the finished cells; ``progress.json``
+    names ``command``, the line that runs (or finishes) the sweep."""
     out = Path(out)
     folder = RunFolder(out, grid)
     everything = jobs(grid)
     records = {j.key: r for j in everything if (r := folder.done(j.key)) is not None}
-    folder.write_progress("grid", [j.key for j in everything], "")
+    folder.write_progress("grid", [j.key for j in everything], command)
     refs, oracles, learned = pc.split(records)
     if not learned and not oracles:
         raise RuntimeError(f"{out} has no finished learner jobs to assemble")

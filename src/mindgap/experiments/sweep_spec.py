@@ -238,7 +238,7 @@ def _grid(entry, where: str, fail, single: bool) -> Part:
         at = f"{where}.params.{key}"
         if not isinstance(values, list) or not values:
             fail(at, f"must be a non-empty list of values, got {values!r}")
-        takers = [m for m in methods if sweep_grid.has_field(bases[m], key)]
+        takers = [m for m in methods if sweep_grid.takes(m, bases[m], key)]
         if not takers:
             fail(at, f"not a setting of {', '.join(methods)}")
         for v in values:
