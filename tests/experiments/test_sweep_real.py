@@ -10,6 +10,11 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import re
+import signal
+import threading
+import time
 
 import pytest
 
@@ -65,15 +70,34 @@ def test_a_fast_learner_on_two_worlds_and_two_seeds_gives_the_same_results_local
     assert (local / "grid" / "curves.csv").read_text() == (ray_store / "grid" / "curves.csv").read_text()
 
 
+def _kill_first_worker(logs, stop: threading.Event, killed: list) -> None:
+    """SIGKILL the worker named in the first job log's header (``--- KEY: pid N on …``), once."""
+    while not stop.is_set() and not killed:
+        for log in sorted(logs.glob("*.log")) if logs.exists() else []:
+            m = re.match(r"--- (\S+): pid (\d+) ", log.read_text())
+            if m:
+                os.kill(int(m.group(2)), signal.SIGKILL)
+                killed.append((m.group(1), log))
+                return
+        time.sleep(0.02)
+
+
 @pytest.mark.slow
-def test_reproduce_table1_on_two_local_workers_gives_the_one_process_table(tmp_path, capsys):
+def test_table1_on_two_local_workers_gives_the_one_process_table_even_when_a_worker_is_killed(tmp_path, capsys):
     one, two = tmp_path / "one", tmp_path / "two"
     assert main(["reproduce", "table1", "--fast", "--quiet", "--out", str(one)]) == 0
-    assert (
-        main(["reproduce", "table1", "--fast", "--quiet", "--backend", "local", "--workers", "2", "--out", str(two)])
-        == 0
-    )
+    stop, killed = threading.Event(), []
+    t = threading.Thread(target=_kill_first_worker, args=(two / "logs", stop, killed), daemon=True)
+    t.start()
+    try:
+        argv = ["reproduce", "table1", "--fast", "--quiet", "--backend", "local", "--workers", "2", "--out", str(two)]
+        assert main(argv) == 0
+    finally:
+        stop.set()
+        t.join()
     assert "20 jobs run, 0 already done, 0 failed" in capsys.readouterr().out
+    key, log = killed[0]
+    assert log.read_text().count(f"--- {key}: pid") == 2  # killed mid-job, then run again
     assert (two / "table.md").read_text() == (one / "table.md").read_text()  # assembled without --assemble
     metrics = ("setting", "belief_param", "method", "seed", "d_R", "d_Theta", "d_pi", "corr_R", "iterations", "w")
     strip = lambda rows: [{k: r[k] for k in metrics} for r in rows]  # noqa: E731 - "seconds" differs, of course

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,6 +110,9 @@ def run_parts(
     jobs = []
     for part in parts:
         RunFolder(folders[part.label], part.config, fresh=fresh)
+        if fresh:  # the workers resume what they find: checkpoints of the discarded jobs go too
+            for stale in ("train", "logs"):
+                shutil.rmtree(folders[part.label] / stale, ignore_errors=True)
         jobs += part_jobs(part, folders[part.label], cpus=cpus, gpus=gpus)
     outcome = backends.run(jobs, backend, progress=progress, desc=desc, **backend_kw)
     summaries, errors = {}, {}
