@@ -144,6 +144,7 @@ def test_a_sweep_killed_as_a_whole_reruns_only_its_missing_jobs(tmp_path):
     assert len(_records(tmp_path)) == 5 and {k: _records(tmp_path)[k] for k in before} == before
 
 
+@pytest.mark.filterwarnings("ignore:os.fork\\(\\) was called:RuntimeWarning")  # Ray starts its servers
 def test_ray_backend_gives_the_local_backends_records_and_survives_a_killed_worker(tmp_path, monkeypatch):
     pytest.importorskip("ray")
     monkeypatch.setenv("HOME", str(tmp_path / "home"))  # a local Ray run leaves nothing in the home folder

@@ -3,7 +3,7 @@ learner on two worlds × two seeds giving the same results on local workers and 
 and ``mindgap reproduce table1 --fast --backend local --workers 2`` giving the one-process table.
 
 Each worker compiles its learner's programs (or reads them from the shared cache), so these
-take minutes except the first; the stand-in tests of the machinery are ``test_sweep_backends.py``.
+take minutes (all are marked slow); the stand-in tests of the machinery are ``test_sweep_backends.py``.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ def _rows(path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow  # a minute with a cold compilation cache: a real learner in a worker process
 def test_a_grid_sweep_runs_resumes_and_is_read_by_the_report(tmp_path, capsys):
     store = tmp_path / "store"
     spec = _spec(tmp_path / "grid.toml", store, '[grid]\nmethods = ["sac"]\nworlds = ["nav1"]\n')
@@ -58,6 +59,7 @@ seeds = [0, 1]
 
 
 @pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:os.fork\\(\\) was called:RuntimeWarning")  # Ray starts its servers
 def test_a_fast_learner_on_two_worlds_and_two_seeds_gives_the_same_results_locally_and_on_ray(tmp_path):
     pytest.importorskip("ray")
     local, ray_store = tmp_path / "local", tmp_path / "ray"

@@ -3,10 +3,12 @@ in one line naming the file, the key and the problem; a good one lists its parts
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from mindgap.cli import main
-from mindgap.experiments import sweep_grid, sweep_spec
+from mindgap.experiments import registry, sweep_grid, sweep_spec
 
 GOOD = """
 [sweep]
@@ -98,3 +100,39 @@ def test_a_good_sweep_file_lists_its_parts_and_jobs(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "table1-fast" in out and "20 jobs" in out and "18 jobs" in out and "2 parts, 38 jobs" in out
     assert not (tmp_path / "store").exists()
+
+
+@pytest.mark.parametrize(
+    "argv,problem",
+    [
+        (["--backend", "local", "--shard", "0/2"], "does not combine with --shard"),
+        (["--backend", "local", "--job", "main/reversed/s0/n300/gerel/tied"], "does not combine with --job"),
+        (["--workers", "2"], "--workers goes with --backend local|ray"),
+        (["--backend", "local", "--address", "head:6379"], "--address names a Ray cluster"),
+        (["--backend", "local", "--seeds", "0"], "seeds must be at least 1"),
+    ],
+)
+def test_reproduce_refuses_backend_flags_that_do_not_fit(tmp_path, capsys, argv, problem):
+    out = tmp_path / "run"
+    assert main(["reproduce", "table1", "--fast", "--quiet", "--out", str(out), *argv]) == 2
+    assert problem in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_the_example_sweep_file_checks(monkeypatch, capsys):
+    monkeypatch.chdir(Path(__file__).resolve().parents[2])  # its user world is named from the repository root
+    assert main(["sweep", "examples/sweep.toml", "--check"]) == 0
+    out = capsys.readouterr().out
+    # per world: the reference, PEBBLE and PrefBias at two budgets and two seeds
+    assert "table1-fast" in out and "2 parts, 38 jobs; backend local" in out
+
+
+@pytest.mark.parametrize("name", [n for n in registry.NAMES if n != "coffee"])
+def test_every_named_experiment_gives_the_backends_unique_jobs_after_the_jobs_they_read(name):
+    jobs = registry.jobs(name, registry.configure(name, "fast"))
+    keys = [k for k, _ in jobs]
+    assert keys and len(set(keys)) == len(keys)
+    for i, (key, needs) in enumerate(jobs):
+        assert all(n in keys[:i] for n in needs), f"{key} reads {needs}, which do not all come before it"
+    if name == "eps":
+        assert any(needs for _, needs in jobs)  # Policy Shaping reads the policies it shapes

@@ -61,10 +61,6 @@ def _backend_kw(args, spec=None) -> dict:
     }
 
 
-def _print_failures(outcome) -> None:
-    print(outcome.report())
-
-
 def run(args: argparse.Namespace) -> int:
     from ..experiments import registry, sweep, sweep_spec
 
@@ -91,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{label}: assembled in {folders[label]}" + (f" ({missing} jobs missing)" if missing else ""))
     for label, why in result.errors.items():
         print(f"{label}: not assembled: {why}")
-    _print_failures(result.outcome)
+    print(result.outcome.report())
     print(f"results in {csv_path} and the run folders beside it (mindgap report {root})")
     return 1 if result.outcome.failed else 0
 
@@ -113,6 +109,11 @@ def reproduce(args: argparse.Namespace) -> int:
         worlds=worlds or None,
         participants=args.participants,
     )
+    if worlds:  # refused here in one line, not in every worker
+        from ..experiments.world_measures import experiment_world
+
+        for w in worlds:
+            experiment_world(w, args.name)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     part = sweep.Part(args.name, out.name, cfg)
     kw = _backend_kw(args)
@@ -126,6 +127,6 @@ def reproduce(args: argparse.Namespace) -> int:
             print(f"{summary['missing_jobs']} jobs not finished; rerun the same command to run them")
     else:
         print(f"{out}: nothing assembled ({result.errors.get(part.label, 'no finished job')})")
-    _print_failures(result.outcome)
+    print(result.outcome.report())
     print(f"results, curves and figures in {out}/")
     return 1 if result.outcome.failed else 0

@@ -465,6 +465,17 @@ class _Session:
     keep = False
 
 
+_TOKENS: list[str] = []
+
+
+def _token() -> str:
+    """This process's token for the local Rays it starts: one for all of them, because Ray
+    keeps the first token it reads for the life of the process."""
+    if not _TOKENS:
+        _TOKENS.append(secrets.token_hex(32))
+    return _TOKENS[0]
+
+
 @contextlib.contextmanager
 def _ray_session(ray, address: str | None, cpus: int | None, progress: bool):
     """Connect to the cluster at ``address``, or start a local Ray for the run and stop it after.
@@ -491,7 +502,7 @@ def _ray_session(ray, address: str | None, cpus: int | None, progress: bool):
     saved = {k: os.environ.get(k) for k in ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN", "PYTHONPATH")}
     if saved["RAY_AUTH_MODE"] is None:
         os.environ["RAY_AUTH_MODE"] = "token"
-        os.environ["RAY_AUTH_TOKEN"] = secrets.token_hex(32)
+        os.environ["RAY_AUTH_TOKEN"] = _token()
         # Ray reads RAY_AUTH_MODE into its configuration when it is imported; read it again
         with contextlib.suppress(Exception):
             from ray._raylet import Config
