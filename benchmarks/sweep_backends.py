@@ -13,7 +13,7 @@
    at work). Ray's part is skipped when Ray is not installed (``pip install 'mindgap[ray]'``).
 
     python benchmarks/sweep_backends.py [--preset fast|full] [--seeds N] [--workers 2] [--cache cold|warm] [--jobs 41]
-                                        [--skip-table1]
+                                        [--skip-table1 | --skip-overhead]
 """
 
 from __future__ import annotations
@@ -71,6 +71,7 @@ def main() -> None:
     p.add_argument("--seeds", type=int, help="table1's seeds (default: the preset's)")
     p.add_argument("--jobs", type=int, default=41, help="no-op jobs of the overhead measurement")
     p.add_argument("--skip-table1", action="store_true", help="only the per-job overhead")
+    p.add_argument("--skip-overhead", action="store_true", help="only table1")
     args = p.parse_args()
     with tempfile.TemporaryDirectory(prefix="mindgap-bench-") as d:
         tmp = Path(d)
@@ -88,7 +89,7 @@ def main() -> None:
             print(f"table1 --{args.preset}, local backend, {args.workers} workers: {local:7.1f} s", flush=True)
             same = (tmp / "one" / "table.md").read_text() == (tmp / "local" / "table.md").read_text()
             print(f"ratio one process / local backend: {one / local:.2f}  (same table: {same})", flush=True)
-        for backend in ["local"] + (["ray"] if importlib.util.find_spec("ray") else []):
+        for backend in [] if args.skip_overhead else ["local"] + (["ray"] if importlib.util.find_spec("ray") else []):
             start, per = overhead(backend, args.workers, args.jobs, tmp / f"noop-{backend}")
             print(
                 f"{backend:5s} backend, {args.jobs} no-op jobs on {args.workers} workers: start-up {start:5.2f} s "
