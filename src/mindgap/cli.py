@@ -14,6 +14,8 @@ mindgap prefbias --world W --out DIR …   (PrefBias, Algorithm 2; see mindgap.c
 mindgap eps --world W --lam L --out DIR …   (EPS, Algorithm 3; see mindgap.commands.eps)
 mindgap study serve|check|links|export|examples …  (user studies in the browser; see mindgap.commands.study)
 mindgap report RUN_DIR … [--out DIR]       (one page of results beside the dissertation's; see mindgap.commands.report)
+mindgap reproduce NAME --backend local|ray [--workers N] [--address ADDR]   (every job on workers, then assembled)
+mindgap sweep SPEC.toml [--backend local|ray] …   (experiments and grids on workers or Ray; see mindgap.commands.sweep)
 """
 
 from __future__ import annotations
@@ -58,7 +60,9 @@ def _parser() -> argparse.ArgumentParser:
         "--job", metavar="KEY", help="run only this job (a record's `command` names it) and print its record"
     )
 
-    from .commands import design, eps, learn, prefbias, report, study, worlds
+    from .commands import design, eps, learn, prefbias, report, study, sweep, worlds
+
+    sweep.add_backend_flags(r)
 
     worlds.add_parser(sub)
     design.add_parser(sub)
@@ -67,6 +71,7 @@ def _parser() -> argparse.ArgumentParser:
     eps.add_parser(sub)
     study.add_parser(sub)
     report.add_parser(sub)
+    sweep.add_parser(sub)
 
     g = sub.add_parser("gerel", help="fit GeReL to simulated or recorded ratings")
     g.add_argument("--domain", default="grid7", help=f"domain: {', '.join(DOMAINS)}")
@@ -135,6 +140,10 @@ def main(argv: list[str] | None = None) -> int:
             from .commands import report
 
             return report.run(args)
+        if args.command == "sweep":
+            from .commands import sweep
+
+            return sweep.run(args)
         if args.command == "design":
             from .commands import design
 
@@ -172,6 +181,13 @@ def _reproduce(args) -> int:
     for flag in ("sleet", "importance"):
         if getattr(args, flag) is not None and args.name != "driving":
             raise ValueError(f"--{flag} belongs to the driving study")
+    if args.backend:
+        from .commands import sweep
+
+        return sweep.reproduce(args)
+    for flag in ("workers", "address", "retries", "cpus_per_job", "gpus_per_job"):
+        if getattr(args, flag) is not None:
+            raise ValueError(f"--{flag.replace('_', '-')} goes with --backend local|ray")
     if args.name == "driving":
         from .experiments import driving_cli
 

@@ -147,3 +147,13 @@ def test_presets_and_the_rerun_command():
     assert registry.preset_of("driving", fast) == "fast"
     line = registry.command("driving", full.__class__(sleet=0.5), "runs/d")
     assert line == "mindgap reproduce driving --sleet 0.5 --out runs/d"
+
+
+def test_workers_run_the_participants_first_and_the_testing_phase_last():
+    """A sweep backend runs jobs apart: each learner waits for the participants, the testing phase for all."""
+    from mindgap.experiments import registry
+
+    jobs = dict(registry.jobs("driving", registry.module("driving").preset("fast")))
+    assert jobs["driving/people"] == ()
+    assert all(jobs[f"driving/{m}"] == ("driving/people",) for m in ("sac", "drlhp", "eps"))
+    assert set(jobs["driving/testing"]) == {"driving/people", "driving/sac", "driving/drlhp", "driving/eps"}

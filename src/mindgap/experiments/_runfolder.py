@@ -108,7 +108,7 @@ class RunFolder:
         atomic_write(cfg_path, cfg)
 
     def _path(self, key: str) -> Path:
-        return self.jobs / (key.replace("/", "__") + ".json")
+        return record_path(self.root, key)
 
     def done(self, key: str) -> dict | None:
         p = self._path(key)
@@ -154,10 +154,14 @@ def print_run(summary: dict, out: Path, only: str | None, outputs: str = "curves
     return 0
 
 
+def record_path(root: Path, key: str) -> Path:
+    """Where the run folder ``root`` keeps job ``key``'s record (``jobs/KEY.json``, ``/`` as ``__``)."""
+    return Path(root) / "jobs" / (key.replace("/", "__") + ".json")
+
+
 def job_summary(record: dict, root: Path, key: str) -> str:
     """What ``mindgap reproduce … --job KEY`` prints: the record's numbers (a Table 1 fit's
     metrics included) and where the record is."""
     flat = {**record, **record.get("row", {})}
     shown = {k: v for k, v in flat.items() if isinstance(v, (int, float, str)) and k != "command"}
-    path = Path(root) / "jobs" / (key.replace("/", "__") + ".json")
-    return json.dumps(shown, indent=1) + f"\nrecord in {path}"
+    return json.dumps(shown, indent=1) + f"\nrecord in {record_path(root, key)}"

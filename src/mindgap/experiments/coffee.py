@@ -212,6 +212,11 @@ def _key(robot, resp, method, param) -> str:
     return f"{robot}/{resp.participant.pid}/{method}/{param}"
 
 
+def job_keys(cfg: CoffeeConfig) -> list[str]:
+    """The keys of the study's fits (one per valid simulated participant, method and parameterisation)."""
+    return [_key(*job) for job in _jobs(cfg, recruit_all(cfg, make_study(cfg.sanity_seed)))]
+
+
 def run(
     cfg: CoffeeConfig,
     out: Path,

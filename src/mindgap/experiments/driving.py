@@ -137,6 +137,14 @@ def jobs(cfg: DrivingConfig) -> list[pc.Job]:
     return out
 
 
+def job_needs(cfg: DrivingConfig) -> dict[str, tuple[str, ...]]:
+    """The jobs each job reads (for workers that run jobs apart): the learners and the testing phase
+    read the participants; the testing phase also reads every learner's policy."""
+    people = f"{WORLD}/people"
+    learners = tuple(j.key for j in jobs(cfg) if j.method in METHODS)
+    return {**{k: (people,) for k in learners}, f"{WORLD}/testing": (people, *learners)}
+
+
 def _sac_cfg(cfg: DrivingConfig) -> pbrl.PbRLConfig:
     names = ("total_steps", "chunk", "eval_every", "eval_episodes", "sac", "seed")
     return pbrl.method_config("sac", **{n: getattr(cfg.eps, n) for n in names})

@@ -46,6 +46,57 @@ def module(name: str):
     return importlib.import_module(f".{MODULES[name]}", __package__)
 
 
+def configure(
+    name: str,
+    preset: str = "full",
+    *,
+    seeds: int | None = None,
+    worlds: tuple[str, ...] | None = None,
+    participants: int | None = None,
+):
+    """The configuration ``mindgap reproduce NAME`` runs: the ``preset`` with the command line's options.
+
+    ``seeds`` (table1 and the terrain experiments; table1's data-efficiency sweep keeps at most
+    that many), ``worlds`` (the terrain experiments: named worlds, world files or factories),
+    ``participants`` (coffee). An option the experiment does not take is refused.
+    """
+    from dataclasses import replace
+
+    cfg = module(name).preset(preset)
+    given = {"seeds": seeds, "worlds": worlds, "participants": participants}
+    for option, value in given.items():
+        if value is not None and option not in options(name):
+            raise ValueError(f"{name} does not take {option} (it takes {', '.join(options(name))})")
+    if seeds is not None:
+        if seeds < 1:
+            raise ValueError("seeds must be at least 1")
+        cfg = replace(cfg, seeds=seeds)
+        if name == "table1":
+            cfg = replace(cfg, demo_count_seeds=min(cfg.demo_count_seeds, seeds))
+    if worlds is not None:
+        if not worlds or any(not w for w in worlds):
+            raise ValueError("worlds needs at least one world")
+        cfg = replace(cfg, worlds=tuple(worlds))
+    if participants is not None:
+        cfg = replace(cfg, participants=participants)
+    return cfg
+
+
+def jobs(name: str, config) -> list[tuple[str, tuple[str, ...]]]:
+    """The jobs of the named experiment under ``config``, in order: ``(key, keys of the jobs it reads)``.
+
+    Each runs alone as ``mindgap reproduce NAME --job KEY`` (``module(name).run(..., only=KEY)``)
+    and writes its record; the experiment's outputs are assembled from the records after.
+    """
+    mod = module(name)
+    if hasattr(mod, "job_keys"):
+        return [(key, ()) for key in mod.job_keys(config)]
+    needs = mod.job_needs(config) if hasattr(mod, "job_needs") else {}
+    return [
+        (job.key, tuple(job.cfg) if job.method == "shaping" else needs.get(job.key, ())) for job in mod.jobs(config)
+    ]
+
+
 def options(name: str) -> tuple[str, ...]:
     """The configuration fields ``mindgap reproduce NAME`` sets from its flags."""
     return _OPTIONS.get(name, _TERRAIN_OPTIONS)

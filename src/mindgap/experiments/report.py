@@ -20,7 +20,7 @@ from pathlib import Path
 
 from .._io import atomic_write
 from . import registry
-from .report_catalog import CATALOG, claims
+from .report_catalog import CATALOG, GRID, claims
 
 _MIME = {".png": "image/png", ".gif": "image/gif", ".svg": "image/svg+xml", ".webp": "image/webp"}
 
@@ -50,7 +50,19 @@ class Run:
     def command(self) -> str:
         if self.progress and self.progress.get("command"):
             return self.progress["command"]
+        if self.experiment not in registry.NAMES:
+            return "mindgap sweep SPEC"
         return registry.command(self.experiment, self.config, self.path)
+
+    @property
+    def entry(self):
+        """What the catalogue says of this run's experiment (a grid sweep's part: :data:`~.report_catalog.GRID`)."""
+        return CATALOG.get(self.experiment, GRID)
+
+    @property
+    def how(self) -> str:
+        """The command that makes runs of this kind."""
+        return f"mindgap reproduce {self.experiment}" if self.experiment in registry.NAMES else "mindgap sweep"
 
 
 def find_runs(paths) -> list[Run]:
@@ -85,7 +97,8 @@ def read_run(path: Path) -> Run:
     summary = _json(path / "summary.json") if (path / "summary.json").exists() else None
     progress = _json(path / "progress.json") if (path / "progress.json").exists() else None
     name = _experiment(path, config, summary, progress)
-    run = Run(path, name, registry.preset_of(name, config), config, summary, progress)
+    preset = registry.preset_of(name, config) if name in registry.NAMES else str(config.get("preset", "custom"))
+    run = Run(path, name, preset, config, summary, progress)
     records = list((path / "jobs").glob("*.json"))
     run.jobs_done = len(records)
     if progress:
@@ -108,7 +121,7 @@ def _json(path: Path) -> dict:
 
 def _experiment(path: Path, config: dict, summary: dict | None, progress: dict | None) -> str:
     for source in (progress, summary):
-        if source and source.get("experiment") in registry.NAMES:
+        if source and source.get("experiment") in (*registry.NAMES, "grid"):
             return source["experiment"]
     if summary and "table2" in summary:
         return "coffee"
@@ -149,7 +162,7 @@ def _context(runs: list[Run], out: Path, embed: bool) -> dict:
 
     sections = []
     for run in runs:
-        entry = CATALOG[run.experiment]
+        entry = run.entry
         items = []
         table_md = (run.summary or {}).get("table_md", "")
         for item in entry.items:
@@ -172,6 +185,7 @@ def _context(runs: list[Run], out: Path, embed: bool) -> dict:
                 "title": entry.title,
                 "section": entry.section,
                 "anchor": f"{run.experiment}-{run.path.name}",
+                "how": run.how,
                 "items": items,
                 "table_md": table_md.strip(),
                 "table_html": md.markdown(table_md, extensions=["tables"]),
@@ -244,7 +258,7 @@ def claims_markdown(runs: list[Run], relative_to: str | Path | None = None) -> s
     for run in runs:
         if run.fast:
             continue
-        entry = CATALOG[run.experiment]
+        entry = run.entry
         where = run.experiment
         if relative_to is not None:
             base = Path(relative_to).resolve()

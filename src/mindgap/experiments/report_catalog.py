@@ -61,6 +61,23 @@ _TABLE5 = """| | EPS | SAC | DRLHP |
 | Avg. Rating | 7.6 | 5.0 | 5.9 |
 | Avg. Return | 11.0 | 11.9 | 9.6 |"""
 
+
+GRID = Entry(
+    "Grid sweep",
+    "a sweep file's grid",
+    (
+        Item(
+            "Grid",
+            "Learners × worlds × settings of a sweep file: the dissertation has no number to set beside these.",
+            (),
+            ("results.csv", "curves.csv", "summary.json"),
+            ("Grid sweep",),
+        ),
+    ),
+    "docs/sweeps.md",
+)
+"""The entry of a grid sweep's run folder (``mindgap sweep``), which no named experiment made."""
+
 CATALOG: dict[str, Entry] = {
     "table1": Entry(
         "GeReL on the grid world",

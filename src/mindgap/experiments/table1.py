@@ -179,6 +179,12 @@ def _jobs(cfg: Table1Config):
                     yield "demos", setting, seed, n, method, "tied" if method in ("gerel", "serd") else "-"
 
 
+def job_keys(cfg: Table1Config) -> list[str]:
+    """The keys of the jobs that fit something (a data-efficiency job on the main sweep's data reads its record)."""
+    keys = [_key(*job) for job in _jobs(cfg)]
+    return [k for k in keys if not _same_data(cfg, k)]
+
+
 def run(
     cfg: Table1Config,
     out: Path,
