@@ -115,15 +115,19 @@ def test_bad_envs_get_one_line_and_nothing_is_written(world, tmp_path, capsys, m
         err = capsys.readouterr().err.strip()
         assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err, (spec, err)
         assert not out.exists()
-    # a world that traces but whose actions SAC cannot take: refused before anything is trained or written
+    # a world with discrete actions that PrefBias cannot take (its f_φ and f_ψ are Gaussians over
+    # continuous moves; SAC, PEBBLE, DRLHP and EPS take them): refused before anything is written
     spec = f"{tmp_path / 'discrete.py'}:make_world"
-    assert main(["pebble", "--env", spec, "--out", str(tmp_path / "never")]) == 2
-    assert "needs a continuous (Box) action space, got Discrete(n=5)" in capsys.readouterr().err
+    assert main(["prefbias", "--env", spec, "--out", str(tmp_path / "never")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "needs a continuous (Box) action space, got Discrete(n=5)" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "never").exists()
     # and the Python API refuses the same world with the same line
+    from mindgap import prefbias
+
     discrete = dataclasses.replace(world, env=dataclasses.replace(world.env, action_space=Discrete(5)))
     with pytest.raises(EnvError, match="continuous"):
-        pbrl.train(discrete, pbrl.fast_config("sac"), progress=False)
+        prefbias.train(discrete, prefbias.fast(), progress=False)
     assert Box((2,)).dim == 2
 
 

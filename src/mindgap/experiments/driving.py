@@ -53,12 +53,8 @@ from ..teachers import drivers as dv
 from ..teachers.preference import TeacherConfig
 from . import prefbias_common as pc
 from ._runfolder import RunFolder, to_jsonable, write_csv
-
-METHODS = ("eps", "sac", "drlhp")
-LABELS = {"eps": "EPS", "sac": "SAC", "drlhp": "DRLHP"}
-PAPER = {"eps": (7.6, 11.0), "sac": (5.0, 11.9), "drlhp": (5.9, 9.6)}
-"""Table 5: (average rating, average return) of each method in the study."""
-WORLD = "driving"
+from .driving_report import METHODS, WORLD
+from .driving_report import write_outputs as report_outputs
 
 
 @dataclasses.dataclass(frozen=True)
@@ -504,9 +500,8 @@ def _load_actors(folder: RunFolder, key: str, world, cfg: DrivingConfig, seeds: 
 
 
 def write_outputs(cfg: DrivingConfig, out: Path, records: dict) -> dict:
-    from .driving_report import write_outputs as write
-
-    return write(cfg, out, records)
+    """The experiment's files from its job records (:mod:`~.driving_report`)."""
+    return report_outputs(cfg, out, records, world_of=world_of, load_actors=_load_actors)
 
 
 __all__ = ["DrivingConfig", "preset", "jobs", "run", "to_jsonable", "write_csv"]

@@ -17,7 +17,12 @@ import numpy as np
 
 from . import prefbias_common as pc
 from ._runfolder import to_jsonable, write_csv
-from .driving import LABELS, METHODS, PAPER, WORLD, DrivingConfig, _load_actors, world_of
+
+METHODS = ("eps", "sac", "drlhp")
+LABELS = {"eps": "EPS", "sac": "SAC", "drlhp": "DRLHP"}
+PAPER = {"eps": (7.6, 11.0), "sac": (5.0, 11.9), "drlhp": (5.9, 9.6)}
+"""Table 5: (average rating, average return) of each method in the study."""
+WORLD = "driving"
 
 BEHAVIOURS = ("collided", "changed", "first_change", "braked_first", "min_gap")
 
@@ -29,7 +34,11 @@ def _ms(values) -> tuple[float, float]:
     return float(np.nanmean(v)), float(np.nanstd(v))
 
 
-def write_outputs(cfg: DrivingConfig, out: Path, records: dict) -> dict:
+def write_outputs(cfg, out: Path, records: dict, *, world_of, load_actors) -> dict:
+    """Table 5, the behaviours, claims and figures of the experiment ``cfg`` (a
+    :class:`~.driving.DrivingConfig`) from its job records. ``world_of(cfg, weights)`` and
+    ``load_actors(folder, key, world, cfg, seeds)`` are :mod:`~.driving`'s, passed in so that this
+    module does not import it back."""
     out = Path(out)
     people = records.get(f"{WORLD}/people")
     testing = records.get(f"{WORLD}/testing")
@@ -59,7 +68,7 @@ def write_outputs(cfg: DrivingConfig, out: Path, records: dict) -> dict:
         write_csv(out / "ratings.csv", testing["ratings"], ["rater", "valid", "method", "seed", "episode", "rating"])
     claims = _claims(by)
     table_md = _table(cfg, by, people, testing)
-    figures = _figures(cfg, out, records, people)
+    figures = _figures(cfg, out, records, people, world_of, load_actors)
     summary = {
         "experiment": "driving",
         "config": to_jsonable(cfg),
@@ -75,7 +84,7 @@ def write_outputs(cfg: DrivingConfig, out: Path, records: dict) -> dict:
     return summary
 
 
-def _table(cfg: DrivingConfig, by: dict, people: dict | None, testing: dict | None) -> str:
+def _table(cfg, by: dict, people: dict | None, testing: dict | None) -> str:
     cols = [m for m in METHODS if m in by]
     head = ["", *(LABELS[m] for m in cols)]
     t5 = [
@@ -172,7 +181,7 @@ def _claims(by: dict) -> list[dict]:
 # Figs. 34–36 through highway-env
 
 
-def _figures(cfg: DrivingConfig, out: Path, records: dict, people: dict | None) -> list[str]:
+def _figures(cfg, out: Path, records: dict, people: dict | None, world_of, load_actors) -> list[str]:
     if people is None:
         return []
     try:
@@ -192,7 +201,7 @@ def _figures(cfg: DrivingConfig, out: Path, records: dict, people: dict | None) 
         rec = records.get(f"{WORLD}/{m}")
         if rec is None:
             continue
-        actor = jax.tree.map(lambda a: a[0], _load_actors(folder, f"{WORLD}/{m}", world, cfg, rec["seeds"]))
+        actor = jax.tree.map(lambda a: a[0], load_actors(folder, f"{WORLD}/{m}", world, cfg, rec["seeds"]))
         env = SleetHighwayEnv(
             render_mode="rgb_array", sleet=cfg.sleet, weights=np.asarray(people["engineered_weights"], np.float32)
         )
