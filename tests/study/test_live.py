@@ -126,6 +126,22 @@ def test_unanswered_queries_are_withdrawn_after_the_timeout(tmp_path):
     assert "Waiting for the next question" in p.get()  # nothing left to answer
 
 
+def test_a_batch_whose_run_stopped_polling_is_withdrawn_before_anyone_is_given_it(tmp_path):
+    store, client = _live(tmp_path)
+    datas = [{"a": {"obs": [[0.0, 0.0]]}, "b": {"obs": [[1.0, 1.0]]}} for _ in range(2)]
+    dead = store.post_live_batch("study:dead-run", datas)  # its run was killed: it never polls again
+    alive = store.post_live_batch("study:live-run", datas)
+    time.sleep(0.3)
+    store.live_counts(alive, touch=True)  # the live run polls
+    pid = store.participants()[0]["id"]
+    qid = store.claim_live(pid, stale_after=0.2)
+    assert store.live_query(qid)["batch_id"] == alive  # never the dead run's query
+    assert store.live_counts(dead) == {"open": 0, "answered": 0, "expired": 2}
+    assert store.live_counts(alive)["open"] == 2
+    # with the default (30 s) a run that polls every half second is never withdrawn
+    assert store.claim_live(pid) == qid and store.live_counts(alive)["open"] == 2
+
+
 def test_a_study_for_another_world_is_refused(tmp_path):
     store, _ = _live(tmp_path)
     with pytest.raises(ValueError, match="shows world 'nav1', the run trains on 'd1'"):
@@ -164,6 +180,39 @@ def test_prefbias_learns_from_people_answering_in_the_study_app(tmp_path):
     assert store.live_counts() == {"open": 0, "answered": 12, "expired": 0}
     assert int(np.asarray(res["carry"].prefs.count).sum()) == 12
     assert [int(q) for _, _, _, q in res["curve"][-1:]] == [12]
+
+
+@pytest.mark.slow
+def test_a_live_run_killed_while_it_waits_resumes_and_finishes_with_people_answering(tmp_path):
+    """Either side may restart: here the training run is SIGKILLed while its first round waits for
+    answers; started again on the same run folder it resumes and finishes, answered through the app."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    (tmp_path / "easy.toml").write_text(EASY)
+    world = world_from_dict(__import__("tomllib").loads(EASY))
+    store, client = _live(tmp_path, world=str(tmp_path / "easy.toml"))
+    argv = [sys.executable, "-m", "mindgap.cli", "pebble", "--env", str(tmp_path / "easy.toml"), "--fast"]
+    argv += ["--queries", "12", "--per-round", "6", "--teacher", f"study:{store.path}", "--answer-timeout", "120"]
+    argv += ["--out", str(tmp_path / "run"), "--quiet"]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    run = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+    deadline = time.monotonic() + 300
+    while store.live_counts()["open"] == 0 and time.monotonic() < deadline and run.poll() is None:
+        time.sleep(0.2)
+    assert store.live_counts()["open"] == 6, run.stdout.read().decode() if run.poll() is not None else "no batch"
+    os.killpg(run.pid, signal.SIGKILL)  # killed while it waits: its batch stays open in the store
+    run.wait()
+    run = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    with People(client, store, world.params):
+        out, _ = run.communicate(timeout=600)
+    assert run.returncode == 0, out.decode()
+    summary = __import__("json").loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["queries"] == 12  # both rounds of the resumed run answered
+    counts = store.live_counts()
+    assert counts["answered"] >= 12 and counts["open"] == 0
 
 
 @pytest.mark.slow

@@ -10,7 +10,10 @@ seconds have passed, with a progress bar. Pairs left unanswered are withdrawn
 answer committed before the withdrawal stands.
 
 Store and run meet only through SQLite, so the server and the run are separate
-processes (or machines sharing a file system) and either may be restarted.
+processes (or machines sharing a file system) and either may be restarted: each poll marks
+the batch alive, and a batch whose run stopped polling (killed while it waited) is withdrawn
+after :data:`~mindgap.study.store.STALE_AFTER` seconds; the restarted run resumes from its
+last checkpoint and posts the round again.
 """
 
 from __future__ import annotations
@@ -81,7 +84,7 @@ class StudyTeacher:
         done = 0
         try:
             while True:
-                done = self.store.live_counts(batch)["answered"]
+                done = self.store.live_counts(batch, touch=True)["answered"]
                 if bar is not None:
                     bar.update(done - bar.n)
                 if done >= k or time.monotonic() >= deadline:

@@ -17,6 +17,12 @@ here is a handful of exact guarantees, each one a line of SQL:
 
 Connections are per thread (the web server answers from a thread pool; a training run
 polls from its own process), each waiting up to ``timeout`` seconds for the write lock.
+
+A live batch is shown only while its run is alive: the run's every poll marks the batch seen
+(:meth:`Store.live_counts` with ``touch``), and a batch not seen for :data:`STALE_AFTER`
+seconds is withdrawn before any participant is given a query (:meth:`Store.claim_live`), so
+a run killed while it waits leaves no question behind; restarted, it resumes from its last
+checkpoint and posts the round again.
 """
 
 from __future__ import annotations
@@ -79,8 +85,15 @@ MIGRATIONS: tuple[tuple[str, ...], ...] = (
             UNIQUE (batch_id, idx))""",
         "CREATE INDEX live_open ON live_queries (status, id)",
     ),
+    (  # 3: a live batch's last sign of life from its run (a run killed mid-wait leaves its batch open)
+        "ALTER TABLE live_batches ADD COLUMN seen_at REAL",
+        "UPDATE live_batches SET seen_at = created_at",
+    ),
 )
 SCHEMA_VERSION = len(MIGRATIONS)
+STALE_AFTER = 30.0
+"""Seconds without a poll from its run after which a live batch's open queries are withdrawn
+(a waiting run polls every half second)."""
 LIVE_PREFIX = "live-"
 
 
@@ -379,7 +392,8 @@ class Store:
     def post_live_batch(self, run: str, datas: list[dict]) -> int:
         with self.write() as c:
             cur = c.execute(
-                "INSERT INTO live_batches (run, size, created_at) VALUES (?, ?, ?)", (run, len(datas), time.time())
+                "INSERT INTO live_batches (run, size, created_at, seen_at) VALUES (?, ?, ?, ?)",
+                (run, len(datas), time.time(), time.time()),
             )
             batch = cur.lastrowid
             c.executemany(
@@ -388,10 +402,19 @@ class Store:
             )
         return batch
 
-    def claim_live(self, pid: int, lease: float = 120.0) -> int | None:
-        """The open live query this participant should answer (kept for ``lease`` seconds), or None."""
+    def claim_live(self, pid: int, lease: float = 120.0, stale_after: float = STALE_AFTER) -> int | None:
+        """The open live query this participant should answer (kept for ``lease`` seconds), or None.
+
+        First withdraws the open queries of batches whose run has not polled for ``stale_after``
+        seconds (the run died while it waited)."""
         now = time.time()
         with self.write() as c:
+            stale = "SELECT id FROM live_batches WHERE closed_at IS NULL AND seen_at < ?"
+            c.execute(
+                f"UPDATE live_queries SET status = 'expired' WHERE status = 'open' AND batch_id IN ({stale})",
+                (now - stale_after,),
+            )
+            c.execute(f"UPDATE live_batches SET closed_at = ? WHERE id IN ({stale})", (now, now - stale_after))
             row = c.execute(
                 "SELECT id FROM live_queries WHERE status = 'open' AND claimed_by = ? ORDER BY id LIMIT 1", (pid,)
             ).fetchone()
@@ -409,7 +432,11 @@ class Store:
     def live_query(self, qid: int) -> sqlite3.Row | None:
         return self.conn().execute("SELECT * FROM live_queries WHERE id = ?", (qid,)).fetchone()
 
-    def live_counts(self, batch: int | None = None) -> dict[str, int]:
+    def live_counts(self, batch: int | None = None, touch: bool = False) -> dict[str, int]:
+        """Queries by status (of one batch, or all); ``touch``: the batch's run is alive (it polls)."""
+        if touch and batch is not None:
+            with self.write() as c:
+                c.execute("UPDATE live_batches SET seen_at = ? WHERE id = ?", (time.time(), batch))
         sql = "SELECT status, COUNT(*) FROM live_queries" + (" WHERE batch_id = ?" if batch is not None else "")
         rows = self.conn().execute(sql + " GROUP BY status", () if batch is None else (batch,)).fetchall()
         out = {"open": 0, "answered": 0, "expired": 0}
