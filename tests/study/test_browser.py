@@ -59,6 +59,18 @@ def _shot(page, name):
         page.screenshot(path=str(d / f"{name}.png"), full_page=True)
 
 
+def _first_participant(browser, server):
+    """A 1280 × 900 page on the study's first participant link, past consent and instructions."""
+    link = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
+    page = browser.new_page(viewport={"width": 1280, "height": 900})
+    page.goto(link["people"][0]["link"])
+    with page.expect_navigation():
+        page.click("#agree")
+    with page.expect_navigation():
+        page.click("#continue")
+    return page
+
+
 def test_a_participant_completes_the_coffee_study_in_chromium_and_gerel_fits_it(browser, tmp_path):
     config = study_file(tmp_path, "coffee-rating", participants=2, min_seconds=0.5)
     server = Server(config, tmp_path / "e2e.sqlite").start()
@@ -187,13 +199,7 @@ def test_screenshots_of_comparison_pages(browser, tmp_path):
         config = study_file(tmp_path, example, participants=1, min_seconds=0, questionnaire=[])
         server = Server(config, tmp_path / f"{example}.sqlite").start()
         try:
-            link = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
-            page = browser.new_page(viewport={"width": 1280, "height": 900})
-            page.goto(link["people"][0]["link"])
-            with page.expect_navigation():
-                page.click("#agree")
-            with page.expect_navigation():
-                page.click("#continue")
+            page = _first_participant(browser, server)
             page.wait_for_function("[...document.querySelectorAll('main img')].every(i => i.complete)")
             page.check("#choice-a")
             _shot(page, f"6-{example}-item")
@@ -288,13 +294,7 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
     config = study_file(tmp_path, "driving-testing", participants=1, min_seconds=0.5)
     server = Server(config, tmp_path / "rate.sqlite").start()
     try:
-        link = httpx.get(server.base + "/admin/api/status", headers={"Authorization": f"Bearer {ADMIN}"}).json()
-        page = browser.new_page(viewport={"width": 1280, "height": 900})
-        page.goto(link["people"][0]["link"])
-        with page.expect_navigation():
-            page.click("#agree")
-        with page.expect_navigation():
-            page.click("#continue")
+        page = _first_participant(browser, server)
         ratings = {"eps-s0-e0": 8, "sac-s0-e0": 5, "sanity": 1}
         for k in range(3):
             assert page.text_content(".progress") == f"item {k + 1} of 3"

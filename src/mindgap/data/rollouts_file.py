@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .versioned_json import read_versioned
+
 FORMAT = "mindgap-rollouts"
 VERSION = 1
 _ITEM = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
@@ -88,18 +90,7 @@ def read_rollouts(path) -> dict:
             of the wrong shape, a repeated or malformed item name, a non-finite number.
     """
     path = Path(path)
-    if not path.is_file():
-        raise RolloutsFileError(f"rollouts file {path} does not exist")
-    try:
-        doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise RolloutsFileError(f"{path}: not valid JSON ({e})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise RolloutsFileError(f'{path}: not a rollouts file (need "format": "{FORMAT}")')
-    if doc.get("version") != VERSION:
-        raise RolloutsFileError(
-            f"{path}: version {doc.get('version')!r} is not supported (this mindgap reads {VERSION})"
-        )
+    doc = read_versioned(path, FORMAT, VERSION, "rollouts file", RolloutsFileError)
     try:
         od, ad = int(doc["obs_dim"]), int(doc["act_dim"])
     except (KeyError, TypeError, ValueError):

@@ -26,11 +26,12 @@ tell" (B-Pref's "equal"); ``answer`` says the same in words. Only ``a``, ``b`` a
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from pathlib import Path
 
 import numpy as np
+
+from ..data.versioned_json import read_versioned
 
 FORMAT = "mindgap-preferences"
 VERSION = 1
@@ -88,18 +89,7 @@ def read_preferences(path, *, require_labels: bool = True) -> Preferences:
             0.5 or 1 — naming the record.
     """
     path = Path(path)
-    if not path.is_file():
-        raise PreferencesFileError(f"preferences file {path} does not exist")
-    try:
-        doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise PreferencesFileError(f"{path}: not valid JSON ({e})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise PreferencesFileError(f'{path}: not a preferences file (need "format": "{FORMAT}")')
-    if doc.get("version") != VERSION:
-        raise PreferencesFileError(
-            f"{path}: version {doc.get('version')!r} is not supported (this mindgap reads {VERSION})"
-        )
+    doc = read_versioned(path, FORMAT, VERSION, "preferences file", PreferencesFileError)
     try:
         length, od, ad = int(doc["segment"]), int(doc["obs_dim"]), int(doc["act_dim"])
     except (KeyError, TypeError, ValueError):
