@@ -126,7 +126,7 @@ def write_outputs(cfg: LambdaConfig, out: Path, records: dict) -> dict:
 
 
 def _claims(world, rows: list[dict], seeds: int) -> list[dict]:
-    """Issue 7: across λ the explicability score rises and the return falls, each within seed noise."""
+    """Fig. 31 (§4.4.1): across λ the explicability score rises and the return falls, each within seed noise."""
     if len(rows) < 2:
         return []
     out = []

@@ -45,7 +45,7 @@ COLOURS = {"EPS": "#2ca02c", "SAC": "#d62728", "DRLHP": "#9467bd", "Policy Shapi
 PERSON_COLOUR = "#1f77b4"
 
 RETURN_SHARE = 0.9
-"""EPS's return must be within 10% of SAC's (issue 7)."""
+"""EPS's return must be within 10% of SAC's (Table 3, §4.4.1: EPS trades little return for explicability)."""
 UNBIASED_SHARE = 0.95
 """EPS with an unbiased person: at least 95% of SAC's return (Fig. 29)."""
 MUCH_WORSE = 50.0
@@ -201,7 +201,7 @@ def _unbiased_cells(person_row: dict, rows: list[dict]) -> list[str]:
 
 
 def _claims(world, mine: dict[str, dict]) -> list[dict]:
-    """What issue 7 asks of the full run, measured on this world."""
+    """The claims of §4.4.1 (Tables 3–4, Figs. 27–30) as measured on this world."""
     eps, sac = mine.get("eps"), mine.get("sac")
     out = []
     if eps is not None:

@@ -134,9 +134,9 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
 
 
 PEBBLE_CEILING = 0.8
-"""The normalised score PEBBLE must stay at or below on a world that shows the effect (issue 25)."""
+"""The normalised score PEBBLE must stay at or below on a world that shows the effect (docs/experiments/identifiability.md, "The targets, measured")."""
 PREFBIAS_FLOOR = 0.9
-"""The normalised score PrefBias must reach (issue 25)."""
+"""The normalised score PrefBias must reach (docs/experiments/identifiability.md, "The targets, measured")."""
 
 
 def _se(a: dict, b: dict) -> float:
