@@ -19,6 +19,7 @@ import pytest
 from mindgap.algorithms import pbrl, prefbias
 from mindgap.cli import main
 from mindgap.envs.gym_world import gym_world_from_spec
+from mindgap.experiments import gym_measures as gm
 from mindgap.experiments import prefbias_common as pc
 from mindgap.experiments import prefbias_gym as pg
 from mindgap.experiments import registry
@@ -193,11 +194,11 @@ def test_the_conditions_are_measured_per_domain():
         ("gym:mindgap/NoisyHalfCheetah-v0,max_episode_steps=50", False),
     ):
         world = gym_world_from_spec(spec)
-        rets, lens = pg.random_host(world, 3, 0)
+        rets, lens = gm.random_host(world, 3, 0)
         assert np.all(np.isfinite(rets)) and np.all((1 <= lens) & (lens <= world.horizon))
         ended = float(np.mean(lens < world.horizon))
         assert (ended > 0) == early
-        conds = pg.conditions(world, cfg, ended, {"config": {"dynamics": {"hidden": [8, 8]}}})
+        conds = gm.conditions(world, cfg, ended, {"config": {"dynamics": {"hidden": [8, 8]}}})
         assert [c["met"] for c in conds] == [True, False, not early, None, True]
         assert "of random-action transitions" in conds[1]["why"]
 
@@ -211,7 +212,7 @@ def test_the_reward_error_is_zero_for_the_person_s_reward_and_two_for_its_revers
 
         return p * jax.vmap(lambda o, a, n: world.env.reward(o, a, n, world.params))(obs, act, nxt) + 3.0
 
-    err = pg.reward_error(world, cfg, scaled, jnp.array([2.0, -1.0]))
+    err = gm.reward_error(world, cfg, scaled, jnp.array([2.0, -1.0]))
     np.testing.assert_allclose(err, [0.0, 2.0], atol=1e-4)
 
 

@@ -27,7 +27,8 @@ vmapped or stepped in lockstep). A ``sac-level`` job per host domain trains SAC 
 
 There is no design check for these worlds: :mod:`~mindgap.planning.design_check` plans on a
 terrain map. The reference job measures instead which conditions of
-docs/experiments/identifiability.md the domain and its person meet (:func:`conditions`).
+docs/experiments/identifiability.md the domain and its person meet
+(:func:`~.gym_measures.conditions`).
 
 Outputs in the run folder: ``curves.csv``, ``results.csv``, ``curves_DOMAIN.png`` (Figs.
 18–20: mean ± std over seeds of the greedy return under the env's own reward),
@@ -55,10 +56,11 @@ from ..models.prefbias_nets import posterior_reward
 from ..models.reward_ensemble import ensemble_reward
 from ..plotting.learning import save_learning_curves
 from ..plotting.paths import save_paths
-from ..teachers.learned_belief import BeliefFitConfig, collect, fit_learned_belief, with_learned_belief
+from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, with_learned_belief
 from . import prefbias_common as pc
 from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
+from .gym_measures import reference_record, reward_error
 
 # ---------------------------------------------------------------------------------------
 # the domains
@@ -401,179 +403,6 @@ def draw_rollout(path: Path, world, actor) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     frames, _ = rollout_frames(world, actor, seed=0)
     save_gif(path, frames)
-
-
-# ---------------------------------------------------------------------------------------
-# the reference job: a random policy and the identifiability conditions
-
-
-def random_host(world: GymWorld, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Returns and lengths of ``episodes`` episodes of a uniformly random policy on a gym world (the env's own reward)."""
-    rng = np.random.default_rng(seed)
-    rets, lens = [], []
-    for e in range(episodes):
-        env, _ = world.make(seed + 7919 * e)
-        try:
-            ret, t, done = 0.0, 0, False
-            while not done and t < world.horizon:
-                _, r, term, trunc, _ = env.step(world.to_env(rng.uniform(-1.0, 1.0, len(world.act_low))))
-                ret, t, done = ret + float(r), t + 1, term or trunc
-        finally:
-            env.close()
-        rets.append(ret)
-        lens.append(t)
-    return np.asarray(rets), np.asarray(lens)
-
-
-def random_mjx(world, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`random_host` on a pure-JAX world (:func:`~.world_measures.random_transitions`)."""
-    from .. import rng
-
-    tr = wm.random_transitions(rng.key(seed), world.env, world.params, episodes, world.horizon, draws=1)
-    return np.asarray(tr["reward"]).sum(1), np.asarray(tr["alive"]).sum(1)
-
-
-def transitions(world, cfg: GymConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Random-action transitions of the true world (obs, act, next_obs): where rewards are compared."""
-    n, seed = cfg.reference.transitions, cfg.reference.seed + 17
-    if isinstance(world, GymWorld):
-        return collect(world, n, seed)
-    from .. import rng
-
-    episodes = max(1, -(-n // world.horizon))
-    tr = wm.random_transitions(rng.key(seed), world.env, world.params, episodes, world.horizon, draws=1)
-    alive = np.asarray(tr["alive"]).reshape(-1)
-    flat = [np.asarray(tr[k]).reshape(alive.size, -1)[alive][:n] for k in ("obs", "act", "next_obs")]
-    return tuple(flat)
-
-
-def reward_error(world, cfg: GymConfig, fn, params) -> np.ndarray:
-    """Per seed, the z-scored RMS error of a learned reward against the person's r_H on random-action transitions.
-
-    As :func:`~.world_measures.reward_error` (0 the truth up to offset and scale, √2 unrelated,
-    2 reversed), on the realised transitions of :func:`transitions`: r_H of a gym domain is a
-    function of the observed transition (docs/domains/gym.md), so no expectation over next
-    states is needed.
-    """
-    obs, act, nxt = transitions(world, cfg)
-    truth = np.asarray(jax.vmap(lambda o, a, n: world.env.reward(o, a, n, world.params))(obs, act, nxt))
-    return wm.reward_error_on(obs, act, nxt, truth.astype(np.float64), fn, params)
-
-
-def reference_record(world, name: str, cfg: GymConfig, belief: dict | None) -> dict:
-    """The random policy's return, the share of its episodes that end early, and the conditions."""
-    r = cfg.reference
-    fn = random_host if isinstance(world, GymWorld) else random_mjx
-    rets, lens = fn(world, r.random_episodes, r.seed)
-    early = float(np.mean(lens < world.horizon))
-    conds = conditions(world, cfg, early, belief)
-    return {
-        "done": f"random {rets.mean():.1f}",
-        "random_return": float(rets.mean()),
-        "random_return_std": float(rets.std()),
-        "random_length": float(lens.mean()),
-        "ended_early": early,
-        "plan_return": None,
-        "conditions": conds,
-        "world_name": world.name,
-        "belief_model": None if belief is None else {k: v for k, v in belief.items() if k != "config"},
-    }
-
-
-def conditions(world, cfg: GymConfig, ended_early: float, belief: dict | None) -> list[dict]:
-    """The conditions of docs/experiments/identifiability.md for this domain and person, as measured.
-
-    1. β finite — the learners' teacher configuration;
-    2. r_H depends on (s, a) only — whether ∂r_H/∂s' is nonzero on any random-action transition;
-    3. equal segments — whether random episodes end before the horizon (share ``ended_early``);
-    4. the truth has more than one outcome where the belief is biased — on MJX, whether
-       ``outcomes`` fresh steps from the same (state, action) differ; a gymnasium env's state
-       cannot be restored, so on the host loop it is not measured (``met`` None);
-    5. the belief lies in f_φ's family — a learned belief is a Gaussian dynamics model like f_ψ,
-       met when its hidden layers are PrefBias's f_ψ's; an MJX world's ``reliable`` belief is a
-       point mass on the physics' next state, outside any Gaussian family.
-
-    Returns:
-        ``[{"text", "met" (True, False or None), "why"}]``.
-    """
-    import jax.numpy as jnp
-
-    beta = cfg.learners.prefbias.teacher.beta
-    obs, act, nxt = (jnp.asarray(x) for x in transitions(world, cfg))
-    grad = jax.vmap(jax.grad(lambda o, a, n: world.env.reward(o, a, n, world.params), argnums=2))(obs, act, nxt)
-    s_prime = float(jnp.mean(jnp.any(jnp.abs(grad) > 1e-6, -1)))
-    out = [
-        dict(
-            text="the person answers by Bradley–Terry with a finite β (Eq. 3.4)",
-            met=beta is not None,
-            why=f"β = {beta}" if beta is not None else "deterministic answers fix no scale of the score",
-        ),
-        dict(
-            text="r_H depends on (s, a) only, as the learner's r_w does",
-            met=s_prime == 0.0,
-            why=f"r_H varies with the next observation on {s_prime:.0%} of random-action transitions",
-        ),
-        dict(
-            text="segments have equal length (a fixed horizon)",
-            met=ended_early == 0.0,
-            why=f"{ended_early:.0%} of random episodes end before the horizon",
-        ),
-    ]
-    if isinstance(world, GymWorld):
-        out.append(
-            dict(
-                text="the truth has more than one outcome wherever the belief is biased",
-                met=None,
-                why="not measured: a gymnasium env's state cannot be restored to draw a second outcome",
-            )
-        )
-        pb_hidden = list(cfg.learners.prefbias.prefbias.dynamics.hidden)
-        fit_hidden = list(belief["config"]["dynamics"]["hidden"]) if belief else []
-        out.append(
-            dict(
-                text="the person's belief lies in f_φ's family",
-                met=fit_hidden == pb_hidden,
-                why=f"a learned Gaussian dynamics model with hidden layers {fit_hidden} (f_ψ's: {pb_hidden})",
-            )
-        )
-    else:
-        share = _stochastic_share(world, cfg, obs.shape[0])
-        out.append(
-            dict(
-                text="the truth has more than one outcome wherever the belief is biased",
-                met=share > 0.0,
-                why=f"{share:.0%} of random (state, action) pairs give differing next states "
-                f"over {cfg.reference.outcomes} draws",
-            )
-        )
-        out.append(
-            dict(
-                text="the person's belief lies in f_φ's family",
-                met=False,
-                why="the reliable belief is a point mass on the physics' next state, not a Gaussian",
-            )
-        )
-    return out
-
-
-def _stochastic_share(world, cfg: GymConfig, count: int) -> float:
-    """Share of random (state, action) pairs of a pure-JAX world whose fresh next observations differ."""
-    from .. import rng
-
-    r = cfg.reference
-    k_s, k_a, k_o = jax.random.split(rng.key(r.seed + 29), 3)
-    n = min(count, 200)
-    states = jax.vmap(lambda k: world.env.reset(k, world.params))(jax.random.split(k_s, n))
-    acts = jax.random.uniform(k_a, (n, world.env.action_space.dim), minval=-1.0, maxval=1.0)
-
-    def spread(s, a, k):
-        nxt = jax.vmap(lambda kk: world.env.observe(world.env.step(kk, s, a, world.params).state, world.params))(
-            jax.random.split(k, r.outcomes)
-        )
-        return jax.numpy.max(jax.numpy.ptp(nxt, axis=0))
-
-    gaps = jax.vmap(spread)(states, acts, jax.random.split(k_o, n))
-    return float(np.mean(np.asarray(gaps) > 1e-4))
 
 
 # ---------------------------------------------------------------------------------------
