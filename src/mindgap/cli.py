@@ -26,6 +26,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from ._io import use_compilation_cache
 from .experiments.registry import NAMES as EXPERIMENTS
 from .experiments.terrain_cli import NAMES as TERRAIN_EXPERIMENTS
 
@@ -110,21 +111,9 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _enable_compilation_cache() -> None:
-    """Keep compiled XLA programs on disk so reruns skip most compilation."""
-    import os
-
-    import jax
-
-    path = os.environ.get("MINDGAP_JAX_CACHE", str(Path.home() / ".cache" / "mindgap" / "jax"))
-    if path:
-        jax.config.update("jax_compilation_cache_dir", path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-
-
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    _enable_compilation_cache()
+    use_compilation_cache()
     try:
         if args.command == "reproduce":
             return _reproduce(args)

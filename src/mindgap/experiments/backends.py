@@ -46,6 +46,8 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
+from .._io import compilation_cache_dir, use_compilation_cache
+
 BACKENDS = ("local", "ray")
 
 OBJECT_STORE_BYTES = 128 * 1024**2
@@ -100,12 +102,6 @@ class Outcome:
         return "\n".join(lines)
 
 
-def compilation_cache_dir() -> str:
-    """The persistent XLA cache every worker shares: ``$MINDGAP_JAX_CACHE``, else ``~/.cache/mindgap/jax``
-    (the command line's; empty disables it)."""
-    return os.environ.get("MINDGAP_JAX_CACHE", str(Path.home() / ".cache" / "mindgap" / "jax"))
-
-
 def run(jobs: list[Job], backend: str = "local", **kw) -> Outcome:
     """Run the unfinished ``jobs`` on ``backend`` (:func:`run_local` or :func:`run_ray`, ``kw`` theirs)."""
     if backend == "local":
@@ -119,21 +115,14 @@ def run(jobs: list[Job], backend: str = "local", **kw) -> Outcome:
 # what every worker does with one job
 
 
-def _use_cache(cache_dir: str | None) -> None:
-    if cache_dir:
-        import jax
-
-        jax.config.update("jax_compilation_cache_dir", cache_dir)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-
-
 def execute(call: Callable, kwargs: dict, key: str, log: str, cache_dir: str | None) -> None:
     """Run one job in this process with its output appended to ``log`` (a header line per attempt).
 
     Raises whatever the job raises (its traceback is in the log), and :class:`RuntimeError`
     when it returns without having written its record.
     """
-    _use_cache(cache_dir)
+    if cache_dir:
+        use_compilation_cache(cache_dir)
     Path(log).parent.mkdir(parents=True, exist_ok=True)
     with open(log, "a", buffering=1) as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
         print(f"--- {key}: pid {os.getpid()} on {socket.gethostname()}, {time.strftime('%Y-%m-%d %H:%M:%S')}")
@@ -256,7 +245,8 @@ class _Progress:
 def _worker(conn, cache_dir: str | None) -> None:
     """A local worker: run the jobs sent over ``conn`` until it closes (the coordinator ended)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's to handle
-    _use_cache(cache_dir)
+    if cache_dir:
+        use_compilation_cache(cache_dir)
     while True:
         try:
             task = conn.recv()
