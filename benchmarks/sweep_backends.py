@@ -4,7 +4,7 @@
    --workers N`` (default 2), each in a fresh process with its own empty JAX compilation
    cache (``--cache cold``, the default: every worker compiles what it runs, as on a new
    machine) or both on one cache warmed by a first run that is not timed (``--cache warm``).
-   ``--preset fast`` (default; minutes) or ``full`` (the real Table 1; about an hour on two
+   ``--preset fast`` (default; minutes) or ``full`` (the real Table 1; 14 + 11 minutes on two
    cores). Prints both times and the ratio.
 2. The backends' own overhead, on ``--jobs`` no-op jobs that only write their record (the run
    folder's contract) with the time they end: start-up = until the first job ended (the
