@@ -23,7 +23,7 @@ SPEC = {
     "dynamics": {"ice": {"stuck": 0.1}, "sand": {"speed": 0.5}},
     "beliefs": {"human": {"ice": {"stuck": 0.7}}},
 }
-CFG = DesignConfig(n=2, draws=8)
+CFG = DesignConfig(n=2)  # the command's settings at `--resolution 2`: the tests share its compiled programs
 
 
 def _world(**patch):
