@@ -100,3 +100,19 @@ def test_sanity_bias_question_and_ratings(key):
         dv.check_sleet_level(1.5)
     with pytest.raises(ValueError, match="share"):
         dv.DriverPopulation(biased=1.2)
+
+
+def test_the_sanity_item_compares_how_expected_each_episode_looks_per_step():
+    """The collision ends its episode after 5 steps, braking in time lasts 15: a sum of log-likelihoods
+    favours the shorter for a participant with no preference among actions; per step it does not."""
+    from mindgap.experiments.driving import _segment, sanity_segments
+
+    collision, safe = (_segment(*ep, WORLD.horizon) for ep in sanity_segments(WORLD, WORLD.horizon))
+    assert int(collision.mask.sum()) < int(safe.mask.sum()) == WORLD.horizon
+    cfg = TeacherConfig()
+    teacher = dv.ExpectationTeacher(WORLD.params.with_sleet(0.0), _actor(IDLE, strength=0.0), WORLD.env)
+    sums = [float(dv.segment_scores(s, teacher, cfg)[0]) for s in (collision, safe)]
+    means = [float(dv.per_step_scores(s, teacher, cfg)[0]) for s in (collision, safe)]
+    assert sums[0] > sums[1] and means[0] < means[1]
+    for s, total, mean in zip((collision, safe), sums, means):
+        assert mean == pytest.approx(total / int(s.mask.sum()), rel=1e-6)

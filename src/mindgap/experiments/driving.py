@@ -274,7 +274,7 @@ def people_record(folder: RunFolder, cfg: DrivingConfig) -> dict:
         whys = []
         for i, d in enumerate(batch):
             teacher = dv.ExpectationTeacher(belief_params(probe, d), jax.tree.map(lambda a: a[i], actors), probe.env)
-            sc = [float(dv.segment_scores(s, teacher, cfg.teacher)[0]) for s in items]
+            sc = [float(dv.per_step_scores(s, teacher, cfg.teacher)[0]) for s in items]
             fails = dv.sanity_fails(jax.random.fold_in(key, i), sc[0], sc[1], d.attentive, cfg.teacher)
             whys.append("failed the sanity check (the collision more expected)" if fails else "")
         return whys

@@ -29,7 +29,11 @@ expect a lane change (measured: docs/experiments/driving.md), which the study di
 
 **Inattentive** recruits (``inattentive``) answer every question at random. The sanity
 item of the study is a collision shown against a car that brakes in time (:func:`sanity_fails`):
-a participant who finds the collision more expected fails and is dropped.
+a participant who finds the collision more expected fails and is dropped. The two episodes
+differ in length (the collision ends its episode), so the item compares how expected each
+looks *per step* (:func:`per_step_scores`), as the testing phase's ratings do: a sum of
+log-likelihoods over unequal lengths favours the episode that ends first, and made most
+attentive recruits fail (measured: docs/experiments/driving.md).
 
 **Testing phase** (:func:`rate_rollouts`): *new* participants, drawn the same way, rate each
 rollout 1–10 by how expected it looks — the rating model of §2.2.1 on the study's 1–10
@@ -242,8 +246,14 @@ def prefers_first(key, scores_a: jax.Array, scores_b: jax.Array, attentive: bool
     return bool(label[0] > 0.5)
 
 
+def per_step_scores(seg: Segments, teacher: ExpectationTeacher, cfg: TeacherConfig) -> jax.Array:
+    """How expected each episode looks per step it lasted: Σ_t [log T_H + log π_H] / (its steps), [K]."""
+    return segment_scores(seg, teacher, cfg) / jnp.maximum(seg.mask.sum(-1), 1)
+
+
 def sanity_fails(key, collision_score, safe_score, attentive: bool, cfg: TeacherConfig) -> bool:
-    """The study's sanity item: the participant finds the collision more expected than braking in time."""
+    """The study's sanity item: the participant finds the collision more expected than braking in time
+    (Bradley–Terry on the two episodes' :func:`per_step_scores`)."""
     return prefers_first(key, collision_score, safe_score, attentive, cfg)
 
 
