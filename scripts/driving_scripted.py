@@ -12,22 +12,29 @@ Three policies, each run for ``--episodes`` episodes on a dry road and at ``--sl
 * ``change lane at once``: LANE_LEFT at the first step, IDLE after.
 
 Both rewards use the study's average importances (Fig. 32). Prints the mean return (± its
-standard error) of each policy under each reward:
+standard error) of each policy under each reward. With ``--run DIR`` (a ``mindgap reproduce
+driving`` run folder) it prints instead how expected each policy's episodes look to that run's
+valid participants: Σ_t [log T_H + log π_H] per step (:func:`mindgap.teachers.drivers.per_step_scores`),
+averaged over the attentive participants and the episodes:
 
-    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0]
+    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0] [--run DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from mindgap.data.segments import Segments
 from mindgap.envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
 from mindgap.envs.driving.params import ACTIONS
-from mindgap.teachers.drivers import RewardH, participant_reward
+from mindgap.teachers.drivers import RewardH, participant_reward, per_step_scores
+from mindgap.teachers.expectation import ExpectationTeacher
 
 IDLE, LEFT, SLOWER = ACTIONS.index("IDLE"), ACTIONS.index("LANE_LEFT"), ACTIONS.index("SLOWER")
 POLICIES = ("brake in lane", "change lane when it brakes", "change lane at once")
@@ -43,8 +50,9 @@ def act(policy: int, obs: jax.Array, t: jax.Array) -> jax.Array:
     )
 
 
-def returns(world, params, policy: int, episodes: int, key) -> tuple[np.ndarray, np.ndarray]:
-    """Returns [episodes] of ``policy`` under r_A and under the average participant's r_H."""
+def returns(world, params, policy: int, episodes: int, key, keep: bool = False):
+    """Returns [episodes] of ``policy`` under r_A and under the average participant's r_H (``keep``: and the
+    episodes as :class:`~mindgap.data.segments.Segments`)."""
     env, horizon = world.env, world.horizon
     r_h = RewardH(jnp.asarray(importance_weights(STUDY_IMPORTANCE), jnp.float32), params)
 
@@ -62,16 +70,46 @@ def returns(world, params, policy: int, episodes: int, key) -> tuple[np.ndarray,
             ra = ra + live * env.reward(obs, a, nxt, params)
             rh = rh + live * participant_reward(r_h, obs[None], a[None], nxt[None])[0]
             done = done | out.terminated | out.truncated
-            return (out.state, done, t + 1, ra, rh), None
+            return (out.state, done, t + 1, ra, rh), (obs, a, nxt, live)
 
         zero = jnp.zeros((), jnp.float32)
-        (_, _, _, ra, rh), _ = jax.lax.scan(
+        (_, _, _, ra, rh), steps = jax.lax.scan(
             body, (state, jnp.zeros((), bool), 0, zero, zero), jax.random.split(k1, horizon)
         )
-        return ra, rh
+        return ra, rh, steps
 
-    ra, rh = jax.jit(jax.vmap(episode))(jax.random.split(key, episodes))
+    ra, rh, (obs, a, nxt, live) = jax.jit(jax.vmap(episode))(jax.random.split(key, episodes))
+    if keep:
+        return np.asarray(ra), np.asarray(rh), Segments(obs, a[..., None].astype(jnp.float32), nxt, live)
     return np.asarray(ra), np.asarray(rh)
+
+
+def expectedness(run: Path, world, episodes: int, key) -> None:
+    """How expected each scripted policy's episodes look per step to the valid, attentive participants of ``run``."""
+    from types import SimpleNamespace
+
+    from mindgap.experiments import driving as dr
+
+    stored = json.loads((run / "config.json").read_text())  # the preset whose π_H networks the run trained
+    cfg = next(
+        c for c in map(dr.preset, ("full", "fast")) if list(c.person.sac.hidden) == stored["person"]["sac"]["hidden"]
+    )
+    people = json.loads((run / "jobs" / "driving__people.json").read_text())
+    valid, actors = dr.load_people(SimpleNamespace(root=run), world, people, cfg)
+    attentive = np.array([d.attentive for d in valid])
+    print(f"per-step expectedness (Σ log T_H + log π_H per step) of {episodes} episodes, "
+          f"{attentive.sum()} attentive participants of {run}")  # fmt: skip
+    for road, params in (("dry", world.beliefs["dry"]), ("sleet", world.params)):
+        for i, name in enumerate(POLICIES):
+            *_, seg = returns(world, params, i, episodes, key, keep=True)
+            scores = []
+            for j, d in enumerate(valid):
+                if attentive[j]:
+                    t = ExpectationTeacher(
+                        dr.belief_params(world, d), jax.tree.map(lambda a, j=j: a[j], actors), world.env
+                    )
+                    scores.append(np.asarray(per_step_scores(seg, t, cfg.teacher)))
+            print(f"{road:<8} {name:<28} {np.mean(scores):>8.2f}")
 
 
 def main() -> None:
@@ -79,9 +117,12 @@ def main() -> None:
     ap.add_argument("--episodes", type=int, default=200)
     ap.add_argument("--sleet", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--run", type=Path, help="a driving run folder: score by its participants' expectations")
     args = ap.parse_args()
     world = make_world(sleet=args.sleet)
     key = jax.random.key(args.seed)
+    if args.run is not None:
+        return expectedness(args.run, world, args.episodes, key)
     print(f"mean return over {args.episodes} episodes (± standard error); study's average importances")
     print(f"{'road':<8} {'policy':<28} {'r_A (lane following)':>22} {'r_H (same lane)':>18}")
     for road, params in (("dry", world.beliefs["dry"]), (f"sleet {args.sleet:g}", world.params)):
