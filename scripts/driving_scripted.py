@@ -5,11 +5,13 @@ Checks the measurement behind the participants' fourth factor: with r_A's lane f
 lane change, whereas with Fig. 32's "staying on the same lane" (1 in the start lane, 0 one lane
 away; :func:`mindgap.teachers.drivers.stay_in_lane`) they would expect braking in lane.
 
-Three policies, each run for ``--episodes`` episodes on a dry road and at ``--sleet``:
+Four policies, each run for ``--episodes`` episodes on a dry road and at ``--sleet``:
 
 * ``brake in lane``: SLOWER once the front car brakes (IDLE before);
 * ``change lane when it brakes``: LANE_LEFT once the front car brakes (IDLE before);
-* ``change lane at once``: LANE_LEFT at the first step, IDLE after.
+* ``change lane at once``: LANE_LEFT at the first step, IDLE after;
+* ``brake, then change lane``: SLOWER at the first decision after the front car brakes, LANE_LEFT
+  after (IDLE before): what EPS does in the dissertation (Fig. 36).
 
 Both rewards use the study's average importances (Fig. 32). Prints the mean return (± its
 standard error) of each policy under each reward. With ``--run DIR`` (a ``mindgap reproduce
@@ -37,16 +39,17 @@ from mindgap.teachers.drivers import RewardH, participant_reward, per_step_score
 from mindgap.teachers.expectation import ExpectationTeacher
 
 IDLE, LEFT, SLOWER = ACTIONS.index("IDLE"), ACTIONS.index("LANE_LEFT"), ACTIONS.index("SLOWER")
-POLICIES = ("brake in lane", "change lane when it brakes", "change lane at once")
+POLICIES = ("brake in lane", "change lane when it brakes", "change lane at once", "brake, then change lane")
 
 
-def act(policy: int, obs: jax.Array, t: jax.Array) -> jax.Array:
-    """The scripted action of ``policy`` (an index into :data:`POLICIES`) at step ``t``."""
+def act(policy: int, obs: jax.Array, t: jax.Array, seen: jax.Array) -> jax.Array:
+    """The scripted action of ``policy`` (an index into :data:`POLICIES`) at step ``t``, after ``seen``
+    decisions with the front car braking."""
     front_brakes = obs[7] > 0.5  # the observation's "front car braking" flag
     return jnp.select(
-        [policy == 0, policy == 1],
-        [jnp.where(front_brakes, SLOWER, IDLE), jnp.where(front_brakes, LEFT, IDLE)],
-        jnp.where(t == 0, LEFT, IDLE),
+        [policy == 0, policy == 1, policy == 2],
+        [jnp.where(front_brakes, SLOWER, IDLE), jnp.where(front_brakes, LEFT, IDLE), jnp.where(t == 0, LEFT, IDLE)],
+        jnp.where(front_brakes, jnp.where(seen == 0, SLOWER, LEFT), IDLE),
     )
 
 
@@ -61,20 +64,21 @@ def returns(world, params, policy: int, episodes: int, key, keep: bool = False):
         state = env.reset(k0, params)
 
         def body(carry, kt):
-            state, done, t, ra, rh = carry
+            state, done, t, seen, ra, rh = carry
             obs = env.observe(state, params)
-            a = act(policy, obs, t)
+            a = act(policy, obs, t, seen)
+            seen = seen + (obs[7] > 0.5)
             out = env.step(kt, state, a, params)
             nxt = env.observe(out.state, params)
             live = ~done
             ra = ra + live * env.reward(obs, a, nxt, params)
             rh = rh + live * participant_reward(r_h, obs[None], a[None], nxt[None])[0]
             done = done | out.terminated | out.truncated
-            return (out.state, done, t + 1, ra, rh), (obs, a, nxt, live)
+            return (out.state, done, t + 1, seen, ra, rh), (obs, a, nxt, live)
 
         zero = jnp.zeros((), jnp.float32)
-        (_, _, _, ra, rh), steps = jax.lax.scan(
-            body, (state, jnp.zeros((), bool), 0, zero, zero), jax.random.split(k1, horizon)
+        (*_, ra, rh), steps = jax.lax.scan(
+            body, (state, jnp.zeros((), bool), 0, 0, zero, zero), jax.random.split(k1, horizon)
         )
         return ra, rh, steps
 

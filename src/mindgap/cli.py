@@ -4,7 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--out DIR]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--answers-by decisions] [--out DIR]
 mindgap reproduce nav|priors|sampling|eps|lambda|gym [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
@@ -52,6 +52,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--sleet", type=float, help="driving: the road's sleet level, 0 (dry) to 1 (full sleet)")
     r.add_argument("--importance", metavar="A,B,C,D", help="driving: the participants' mean importance answers (1-5)")
+    r.add_argument(
+        "--answers-by",
+        choices=("expectation", "decisions"),
+        help="driving: participants answer queries by log T_H + log pi_H (expectation, default) or log pi_H alone",
+    )
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
     r.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -167,9 +172,9 @@ def _reproduce(args) -> int:
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
-    for flag in ("sleet", "importance"):
+    for flag in ("sleet", "importance", "answers_by"):
         if getattr(args, flag) is not None and args.name != "driving":
-            raise ValueError(f"--{flag} belongs to the driving study")
+            raise ValueError(f"--{flag.replace('_', '-')} belongs to the driving study")
     if args.backend:
         from .commands import sweep
 

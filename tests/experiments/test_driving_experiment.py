@@ -11,6 +11,7 @@ the claims, the highway-env frames and GIFs, the report, and resuming.
 """
 
 import csv
+import dataclasses
 import json
 from types import SimpleNamespace
 
@@ -147,6 +148,21 @@ def test_presets_and_the_rerun_command():
     assert registry.preset_of("driving", fast) == "fast"
     line = registry.command("driving", full.__class__(sleet=0.5), "runs/d")
     assert line == "mindgap reproduce driving --sleet 0.5 --out runs/d"
+    decisions = dataclasses.replace(full, teacher=dataclasses.replace(full.teacher, use_belief=False))
+    assert registry.preset_of("driving", decisions) == "full"
+    assert (
+        registry.command("driving", decisions, "runs/d")
+        == "mindgap reproduce driving --answers-by decisions --out runs/d"
+    )
+
+
+def test_answers_by_decisions_reaches_the_participants(tmp_path, monkeypatch):
+    """``--answers-by decisions`` sets the participants' TeacherConfig (log π_H alone); only the driving study takes it."""
+    seen = []
+    monkeypatch.setattr(driving, "run", lambda cfg, out, **kw: seen.append(cfg) or {"job": {}})
+    assert main(["reproduce", "driving", "--fast", "--answers-by", "decisions", "--job", "driving/people"]) == 0
+    assert seen[0].teacher.use_belief is False and seen[0].teacher.beta == 1.0
+    assert main(["reproduce", "eps", "--fast", "--answers-by", "decisions"]) == 2
 
 
 def test_workers_run_the_participants_first_and_the_testing_phase_last():

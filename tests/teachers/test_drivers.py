@@ -116,3 +116,16 @@ def test_the_sanity_item_compares_how_expected_each_episode_looks_per_step():
     assert sums[0] > sums[1] and means[0] < means[1]
     for s, total, mean in zip((collision, safe), sums, means):
         assert mean == pytest.approx(total / int(s.mask.sum()), rel=1e-6)
+
+
+def test_a_participant_who_judges_decisions_scores_log_pi_alone():
+    """``use_belief=False``: Σ_t log π_H(a_t|s_t) over the live steps, the road's response left out."""
+    from mindgap.models.categorical import categorical_log_prob
+
+    seg = _episode(SLOWER)
+    actor = _actor(SLOWER, strength=1.0)
+    teacher = dv.ExpectationTeacher(WORLD.params.with_sleet(0.0), actor, WORLD.env)
+    decisions = float(dv.segment_scores(seg, teacher, TeacherConfig(use_belief=False))[0])
+    log_pi = categorical_log_prob(actor, seg.obs[0], seg.act[0])
+    assert decisions == pytest.approx(float(jnp.sum(jnp.where(seg.mask[0], log_pi, 0.0))), rel=1e-5)
+    assert float(dv.segment_scores(seg, teacher, TeacherConfig())[0]) != pytest.approx(decisions, rel=1e-3)

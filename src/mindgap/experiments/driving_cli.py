@@ -1,13 +1,15 @@
 """The driving study on the command line: ``mindgap reproduce driving``.
 
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--importance A,B,C,D] [--answers-by decisions] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, 4 + 4 participants, tiny networks: a dry
 run and the tests' preset, not results); without it the full one (5 seeds, 30 000 steps,
 400 queries, 14 + 15 participants). ``--sleet`` sets the road (0 dry … 1 full sleet, default
 1); ``--importance`` the population's mean answers to Fig. 32's four questions (1–5; default
-the study's 3.42,4.57,3.28,3.78). The run folder defaults to ``runs/driving``
-(``runs/driving-fast``); rerunning resumes.
+the study's 3.42,4.57,3.28,3.78). ``--answers-by decisions`` has the participants answer
+"which is more expected?" (and the sanity item) by log π_H alone, leaving out how the road
+responded (log T_H): the ablation of docs/experiments/driving.md. The run folder defaults to
+``runs/driving`` (``runs/driving-fast``); rerunning resumes.
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ def reproduce(args) -> int:
         except ValueError:
             raise ValueError(f"--importance takes four numbers separated by commas, got {args.importance!r}") from None
         changes["importance"] = values
+    if getattr(args, "answers_by", None) == "decisions":
+        changes["teacher"] = replace(cfg.teacher, use_belief=False)
     if changes:
         cfg = replace(cfg, **changes)  # checked in DrivingConfig.__post_init__: one line each
     out = args.out or Path("runs") / ("driving" + ("-fast" if args.fast else ""))

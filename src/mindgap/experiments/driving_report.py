@@ -155,7 +155,8 @@ def _claims(by: dict) -> list[dict]:
                 "driving: SAC changes lane first (earliest first lane change, in most episodes)",
                 np.isfinite(fc["sac"])
                 and by["sac"]["changed_mean"] > 0.5
-                and all(not fc[m] <= fc["sac"] for m in ("eps", "drlhp")),  # strictly (a tie is not "first"); never is later
+                # strictly: a tie is not "first"; never changing lane (NaN) is later
+                and all(not fc[m] <= fc["sac"] for m in ("eps", "drlhp")),
                 ", ".join(f"{LABELS[m]} {fc[m]:.1f} ({pc.share(by[m]['changed_mean'])} change)" for m in METHODS),
             )
         )

@@ -34,7 +34,7 @@ NAMES = tuple(MODULES)
 _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
-    "driving": ("seeds", "sleet", "importance"),
+    "driving": ("seeds", "sleet", "importance", "teacher"),  # teacher: --answers-by sets its use_belief
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -131,6 +131,8 @@ def command(name: str, config, out: str | Path) -> str:
         words += ["--sleet", f"{cfg['sleet']:g}"]
     if name == "driving" and cfg.get("importance") != ref.get("importance"):
         words += ["--importance", ",".join(f"{v:g}" for v in cfg["importance"])]
+    if name == "driving" and not (cfg.get("teacher") or {}).get("use_belief", True):
+        words += ["--answers-by", "decisions"]
     worlds = cfg.get("worlds")
     if "worlds" in options(name) and worlds is not None and list(worlds) != list(ref.get("worlds") or []):
         if any("," in w for w in worlds):

@@ -26,8 +26,9 @@ Choices:
   (:func:`~mindgap.models.categorical.categorical_log_prob`).
 * ``cfg.log_t_floor`` floors each of the two terms per step, so that one step the person
   finds (nearly) impossible cannot decide a comparison alone.
-* ``cfg.use_belief`` does not apply: an expectation is always judged under a model of the
-  dynamics. A person without bias is the same teacher with the true table
+* ``cfg.use_belief=False`` leaves log T_H out: a person who judges the agent's decisions by
+  log π_H alone and not how the world responded (the driving study's ablation,
+  docs/experiments/driving.md). A person without bias is the same teacher with the true table
   (``belief = world.params``) and the π_H trained under it.
 """
 
@@ -81,15 +82,21 @@ def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array, discrete: b
     return squashed_log_prob(mean, log_std, act)
 
 
-def step_log_likelihood(teacher: ExpectationTeacher, obs, act, next_obs, floor: float) -> jax.Array:
-    """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, next_obs [..., d], act [..., a] → [...]."""
+def step_log_likelihood(
+    teacher: ExpectationTeacher, obs, act, next_obs, floor: float, outcomes: bool = True
+) -> jax.Array:
+    """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, next_obs [..., d], act [..., a] → [...].
+
+    ``outcomes=False`` leaves out log T_H: the person judges the agent's decisions and not how the
+    world responded to them (the rating model of §2.2.1 read as a comparison)."""
 
     discrete = isinstance(teacher.env.action_space, Discrete)
 
     def one(o, a, o2):
-        log_t = jnp.maximum(teacher.env.log_prob(o, a, o2, teacher.belief), floor)
         log_pi = jnp.maximum(expected_log_prob(teacher.policy, o, a, discrete), floor)
-        return log_t + log_pi
+        if not outcomes:
+            return log_pi
+        return jnp.maximum(teacher.env.log_prob(o, a, o2, teacher.belief), floor) + log_pi
 
     batch = obs.shape[:-1]
     flat = jax.vmap(one)(
@@ -105,7 +112,7 @@ def segment_scores(seg: Segments, teacher: ExpectationTeacher, cfg: TeacherConfi
     Jitted on its own (the exact densities take seconds to compile), so that host code,
     and :func:`answer` called outside jit, reuse one compiled program per shape.
     """
-    per_step = step_log_likelihood(teacher, seg.obs, seg.act, seg.next_obs, cfg.log_t_floor)
+    per_step = step_log_likelihood(teacher, seg.obs, seg.act, seg.next_obs, cfg.log_t_floor, cfg.use_belief)
     return discounted_sum(per_step, seg.mask, cfg.gamma)
 
 

@@ -47,7 +47,8 @@ class TeacherConfig:
     log_t_floor: float = -20.0
     """Per-step floor on log T_H, so one step that looks impossible cannot decide alone."""
     use_belief: bool = True
-    """Include the log T_H term (False: the ordinary B-Pref teacher)."""
+    """Include the log T_H term (False: the ordinary B-Pref teacher; for an expectation teacher, one who
+    judges the agent's decisions by log π_H alone)."""
 
 
 def segment_scores(seg: Segments, env: Env, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
