@@ -16,7 +16,8 @@ Four policies, each run for ``--episodes`` episodes on a dry road and at ``--sle
 Both rewards use the study's average importances (Fig. 32). Prints the mean return (± its
 standard error) of each policy under each reward. With ``--run DIR`` (a ``mindgap reproduce
 driving`` run folder) it prints instead how expected each policy's episodes look to that run's
-valid participants: Σ_t [log T_H + log π_H] per step (:func:`mindgap.teachers.drivers.per_step_scores`),
+valid participants, scored as they answer queries — Σ_t [log T_H + log π_H] per step, or log π_H
+alone for a run made with ``--answers-by decisions`` (:func:`mindgap.teachers.drivers.per_step_scores`) —
 averaged over the attentive participants and the episodes:
 
     .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0] [--run DIR]
@@ -25,6 +26,7 @@ averaged over the attentive participants and the episodes:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -98,10 +100,12 @@ def expectedness(run: Path, world, episodes: int, key) -> None:
     cfg = next(
         c for c in map(dr.preset, ("full", "fast")) if list(c.person.sac.hidden) == stored["person"]["sac"]["hidden"]
     )
+    teacher = dataclasses.replace(cfg.teacher, use_belief=stored["teacher"]["use_belief"])  # --answers-by
     people = json.loads((run / "jobs" / "driving__people.json").read_text())
     valid, actors = dr.load_people(SimpleNamespace(root=run), world, people, cfg)
     attentive = np.array([d.attentive for d in valid])
-    print(f"per-step expectedness (Σ log T_H + log π_H per step) of {episodes} episodes, "
+    terms = "log T_H + log π_H" if teacher.use_belief else "log π_H"
+    print(f"per-step expectedness (Σ {terms} per step, as the run's participants answer) of {episodes} episodes, "
           f"{attentive.sum()} attentive participants of {run}")  # fmt: skip
     for road, params in (("dry", world.beliefs["dry"]), ("sleet", world.params)):
         for i, name in enumerate(POLICIES):
@@ -112,7 +116,7 @@ def expectedness(run: Path, world, episodes: int, key) -> None:
                     t = ExpectationTeacher(
                         dr.belief_params(world, d), jax.tree.map(lambda a, j=j: a[j], actors), world.env
                     )
-                    scores.append(np.asarray(per_step_scores(seg, t, cfg.teacher)))
+                    scores.append(np.asarray(per_step_scores(seg, t, teacher)))
             print(f"{road:<8} {name:<28} {np.mean(scores):>8.2f}")
 
 
