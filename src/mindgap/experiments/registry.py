@@ -34,7 +34,7 @@ NAMES = tuple(MODULES)
 _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
-    "driving": ("seeds", "sleet", "importance", "teacher"),  # teacher: --answers-by sets its use_belief
+    "driving": ("seeds", "sleet", "importance"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -105,6 +105,8 @@ def options(name: str) -> tuple[str, ...]:
 def preset_of(name: str, config) -> str:
     """``full``, ``fast`` or ``custom``: which preset ``config`` (a dataclass or its JSON) is."""
     cfg = _plain(config)
+    if name == "driving" and isinstance(cfg.get("teacher"), dict):
+        cfg["teacher"] = {**cfg["teacher"], "use_belief": True}  # --answers-by decisions sets it False
     for preset in ("full", "fast"):
         if same_config(cfg, module(name).preset(preset), ignore=options(name)):
             return preset
