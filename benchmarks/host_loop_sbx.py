@@ -115,9 +115,10 @@ def main() -> None:
     p.add_argument("--no-sb3", action="store_true", help="skip Stable-Baselines3 (the slowest side)")
     a = p.parse_args()
     hidden = tuple(int(x) for x in a.hidden.split(","))
-    have_sbx, have_sb3 = _installed("sbx"), _installed("stable_baselines3") and not a.no_sb3
-    if not have_sbx or not have_sb3:
-        print("sbx or Stable-Baselines3 is not installed (pip install -e '.[bench]'): those rows are skipped")
+    missing = [m for m in ("sbx", "stable_baselines3") if not _installed(m)]
+    if missing:
+        print(f"{', '.join(missing)} not installed (pip install -e '.[bench]'): those rows are skipped")
+    have_sbx, have_sb3 = "sbx" not in missing, "stable_baselines3" not in missing and not a.no_sb3
     print(f"({a.steps} steps per seed, {a.hidden}, batch {a.batch}, {a.learning_starts} random steps first;")
     print(" environment steps per second of all seeds, compiled; first run in brackets)")
     for name in a.env:

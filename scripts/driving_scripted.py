@@ -95,28 +95,28 @@ def expectedness(run: Path, world, episodes: int, key) -> None:
     from types import SimpleNamespace
 
     from mindgap.experiments import driving as dr
+    from mindgap.experiments import registry
 
-    stored = json.loads((run / "config.json").read_text())  # the preset whose π_H networks the run trained
-    cfg = next(
-        c for c in map(dr.preset, ("full", "fast")) if list(c.person.sac.hidden) == stored["person"]["sac"]["hidden"]
-    )
+    stored = json.loads((run / "config.json").read_text())
+    preset = registry.preset_of("driving", stored)  # whose π_H networks the run trained
+    if preset == "custom":
+        raise SystemExit(f"{run}: not a run of a driving preset (its config was changed in code)")
+    cfg = dr.preset(preset)
     teacher = dataclasses.replace(cfg.teacher, use_belief=stored["teacher"]["use_belief"])  # --answers-by
     people = json.loads((run / "jobs" / "driving__people.json").read_text())
     valid, actors = dr.load_people(SimpleNamespace(root=run), world, people, cfg)
-    attentive = np.array([d.attentive for d in valid])
+    persons = [
+        ExpectationTeacher(dr.belief_params(world, d), jax.tree.map(lambda a, j=j: a[j], actors), world.env)
+        for j, d in enumerate(valid)
+        if d.attentive
+    ]
     terms = "log T_H + log π_H" if teacher.use_belief else "log π_H"
     print(f"per-step expectedness (Σ {terms} per step, as the run's participants answer) of {episodes} episodes, "
-          f"{attentive.sum()} attentive participants of {run}")  # fmt: skip
+          f"{len(persons)} attentive participants of {run}")  # fmt: skip
     for road, params in (("dry", world.beliefs["dry"]), ("sleet", world.params)):
         for i, name in enumerate(POLICIES):
             *_, seg = returns(world, params, i, episodes, key, keep=True)
-            scores = []
-            for j, d in enumerate(valid):
-                if attentive[j]:
-                    t = ExpectationTeacher(
-                        dr.belief_params(world, d), jax.tree.map(lambda a, j=j: a[j], actors), world.env
-                    )
-                    scores.append(np.asarray(per_step_scores(seg, t, teacher)))
+            scores = [np.asarray(per_step_scores(seg, person, teacher)) for person in persons]
             print(f"{road:<8} {name:<28} {np.mean(scores):>8.2f}")
 
 
