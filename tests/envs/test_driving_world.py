@@ -46,7 +46,7 @@ def test_the_world_follows_the_interface(key):
     obs = world.env.observe(s, world.params)
     assert obs.shape == (11,) and obs.dtype == jnp.float32
     # the units: lane 1's centre, 25 m/s, the front car 35 m ahead (30 m gap + one car length)
-    assert np.allclose(np.asarray(obs)[[0, 2, 3, 4, 8, 9, 10]], [1.0, 25 / 30, 1.0, 25 / 30, 0.35, 1.0, 25 / 30])
+    assert np.allclose(np.asarray(obs)[[0, 2, 3, 4, 8, 9, 10]], [1.0, 25 / 30, 1.0, 25 / 30, (42.5 + 5) / 100, 1.0, 25 / 30])
     assert world.obs_units().shape == (11,) and world.trace(obs[None]).shape == (1, 2)
     assert make_world(traffic=2).env.observation_space.dim == 17
     assert make_world().env == DRIVING_ENV  # one Env object: learners compile once for every sleet level
@@ -189,13 +189,18 @@ def test_the_front_car_brakes_at_a_uniform_moment(key):
 
 
 def test_rewards_follow_the_features_and_a_collision_costs_the_penalty(key):
-    p = make_params()
+    p = make_params(gap=30.0)
     s = reset(key, p)
     obs = observe(s, p)
     w = np.asarray(p.rewards.weights)
     r = float(DRIVING_ENV.reward(obs, IDLE, obs, p))
     # at the start: 25 of 30 m/s; a 30 m gap of the desired 5 + 1.5·25 m; the same speed as the front car; centred
     assert r == pytest.approx(w @ [25 / 30, 30 / 42.5, 1.0, 1.0], abs=1e-5)
+    # by default the cars start at the desired gap: steady following, the front-distance feature whole
+    d = make_params()
+    start = observe(reset(key, d), d)
+    assert float(d.gap) == pytest.approx(42.5)
+    assert float(DRIVING_ENV.reward(start, IDLE, start, d)) == pytest.approx(w @ [25 / 30, 1.0, 1.0, 1.0], abs=1e-5)
     halfway = s._replace(y=jnp.float32(6.0), others_speed=jnp.asarray([15.0]))
     r2 = float(DRIVING_ENV.reward(obs, IDLE, observe(halfway, p), p))
     # half a lane over: lane 2 by rounding (no car ahead there), on no centre line, 10 m/s faster than the neighbour

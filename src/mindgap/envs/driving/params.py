@@ -187,7 +187,7 @@ def make_params(
     lanes: int = 3,
     start_lane: int = 1,
     speed: float = 25.0,
-    gap: float = 30.0,
+    gap: float | None = None,
     front_decel: float = 5.0,
     front_final_speed: float = 5.0,
     brake_window: tuple[int, int] = (1, 4),
@@ -205,6 +205,10 @@ def make_params(
         traffic: how many other cars (0 to ``2 · (lanes − 1)``): they cruise in the lanes
             other than the start lane, alternately 40 m behind and 30 m ahead of the ego and
             further out, at the road speed ± 2 m/s.
+        gap: the start gap [m]; by default the desired gap at the road speed (r_A's
+            ``standstill + headway · speed``: 42.5 m at 25 m/s): steady following, where the
+            front-distance feature is 1 and nothing calls for a response until the front car
+            brakes. A shorter gap starts the car tailgating by the reward's own measure.
         brake_window: (first, last) decision step at which the front car may start to brake.
         weights: r_A's [4] feature weights (default: from the study's importance ratings,
             :func:`~mindgap.envs.driving.reward.importance_weights`).
@@ -224,6 +228,9 @@ def make_params(
         raise ValueError("target_speeds must be at least two increasing, evenly spaced speeds")
     if not ts[0] <= speed <= ts[-1]:
         raise ValueError(f"speed must lie within the target speeds [{ts[0]}, {ts[-1]}], got {speed}")
+    if gap is None:
+        d = RewardParams._field_defaults
+        gap = float(d["standstill"] + d["headway"] * speed)
     if not 0.0 <= front_final_speed < speed or front_decel <= 0 or gap <= 0:
         raise ValueError("the front car must brake (front_decel > 0) to a speed below the road speed, from a gap > 0")
     for name in ("dry_mean", "sleet_mean"):
