@@ -18,9 +18,12 @@ standard error) of each policy under each reward. With ``--run DIR`` (a ``mindga
 driving`` run folder) it prints instead how expected each policy's episodes look to that run's
 valid participants, scored as they answer queries — Σ_t [log T_H + log π_H] per step, or log π_H
 alone for a run made with ``--answers-by decisions`` (:func:`mindgap.teachers.drivers.per_step_scores`) —
-averaged over the attentive participants and the episodes:
+averaged over the attentive participants and the episodes. With ``--run DIR --expected`` it prints
+what each attentive participant expects the car to do: their π_H's own episodes (actions drawn
+from π_H) in the world as they believe it — how often the expected car changes lane before the
+front car brakes, and its first decision once it brakes:
 
-    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0] [--run DIR]
+    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0] [--run DIR [--expected]]
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import argparse
 import dataclasses
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -37,10 +41,14 @@ import numpy as np
 from mindgap.data.segments import Segments
 from mindgap.envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
 from mindgap.envs.driving.params import ACTIONS
+from mindgap.experiments import driving as dr
+from mindgap.experiments import registry
+from mindgap.models.categorical import sample_categorical
 from mindgap.teachers.drivers import RewardH, participant_reward, per_step_scores
 from mindgap.teachers.expectation import ExpectationTeacher
 
 IDLE, LEFT, SLOWER = ACTIONS.index("IDLE"), ACTIONS.index("LANE_LEFT"), ACTIONS.index("SLOWER")
+RIGHT, FASTER = ACTIONS.index("LANE_RIGHT"), ACTIONS.index("FASTER")
 POLICIES = ("brake in lane", "change lane when it brakes", "change lane at once", "brake, then change lane")
 
 
@@ -90,13 +98,8 @@ def returns(world, params, policy: int, episodes: int, key, keep: bool = False):
     return np.asarray(ra), np.asarray(rh)
 
 
-def expectedness(run: Path, world, episodes: int, key) -> None:
-    """How expected each scripted policy's episodes look per step to the valid, attentive participants of ``run``."""
-    from types import SimpleNamespace
-
-    from mindgap.experiments import driving as dr
-    from mindgap.experiments import registry
-
+def participants(run: Path, world):
+    """The run's attentive valid participants as (driver, π_H actor) pairs, and how they answer."""
     stored = json.loads((run / "config.json").read_text())
     preset = registry.preset_of("driving", stored)  # whose π_H networks the run trained
     if preset == "custom":
@@ -105,11 +108,61 @@ def expectedness(run: Path, world, episodes: int, key) -> None:
     teacher = dataclasses.replace(cfg.teacher, use_belief=stored["teacher"]["use_belief"])  # --answers-by
     people = json.loads((run / "jobs" / "driving__people.json").read_text())
     valid, actors = dr.load_people(SimpleNamespace(root=run), world, people, cfg)
-    persons = [
-        ExpectationTeacher(dr.belief_params(world, d), jax.tree.map(lambda a, j=j: a[j], actors), world.env)
-        for j, d in enumerate(valid)
-        if d.attentive
-    ]
+    pairs = [(d, jax.tree.map(lambda a, j=j: a[j], actors)) for j, d in enumerate(valid) if d.attentive]
+    return pairs, teacher
+
+
+def expected_episodes(run: Path, world, episodes: int, key) -> None:
+    """What each attentive participant of ``run`` expects: their π_H's own episodes in their believed world."""
+    env = world.env
+
+    def episode(actor, params, k):
+        k0, k1 = jax.random.split(k)
+
+        def body(carry, kt):
+            state, done = carry
+            obs = env.observe(state, params)
+            ka, ks = jax.random.split(kt)
+            a = sample_categorical(actor, obs, ka)[0][0]
+            out = env.step(ks, state, a, params)
+            return (out.state, done | out.terminated | out.truncated), (obs, a, ~done)
+
+        _, steps = jax.lax.scan(body, (env.reset(k0, params), jnp.zeros((), bool)), jax.random.split(k1, world.horizon))
+        return steps
+
+    many = jax.jit(jax.vmap(episode, in_axes=(None, None, 0)))
+    print(
+        f"{episodes} episodes of each attentive participant's π_H (actions drawn from it) in the world they believe in"
+    )
+    print(f"{'participant':<12} {'belief':<7} {'changes lane before it brakes':>30} | first decision once it brakes: "
+          f"{'SLOWER':>7} {'lane change':>12} {'IDLE/FASTER':>12}")  # fmt: skip
+    rows = []
+    for d, actor in participants(run, world)[0]:
+        obs, act, live = map(np.asarray, many(actor, dr.belief_params(world, d), jax.random.split(key, episodes)))
+        act = act.astype(int)
+        braking = (obs[..., 7] > 0.5) & live
+        onset = np.where(braking.any(1), np.argmax(braking, 1), world.horizon)
+        lane = np.abs(np.diff(obs[..., 3], axis=1)) > 0.5  # the target lane changed at this decision
+        before = np.array([lane[i, : onset[i]].any() for i in range(episodes)])  # decisions 0 … onset − 1
+        first = np.array([act[i, onset[i]] if onset[i] < world.horizon else -1 for i in range(episodes)])
+        shares = [
+            np.mean(first == SLOWER),
+            np.mean(np.isin(first, (LEFT, RIGHT))),
+            np.mean(np.isin(first, (IDLE, FASTER))),
+        ]
+        rows.append([before.mean(), *shares])
+        belief = "dry" if d.believed_sleet == 0 else f"{d.believed_sleet:g}"
+        print(
+            f"{d.pid:<12} {belief:<7} {before.mean():>30.2f} | {'':>31}{shares[0]:>7.2f} {shares[1]:>12.2f} {shares[2]:>12.2f}"
+        )
+    m = np.mean(rows, 0)
+    print(f"{'mean':<12} {'':<7} {m[0]:>30.2f} | {'':>31}{m[1]:>7.2f} {m[2]:>12.2f} {m[3]:>12.2f}")
+
+
+def expectedness(run: Path, world, episodes: int, key) -> None:
+    """How expected each scripted policy's episodes look per step to the valid, attentive participants of ``run``."""
+    pairs, teacher = participants(run, world)
+    persons = [ExpectationTeacher(dr.belief_params(world, d), actor, world.env) for d, actor in pairs]
     terms = "log T_H + log π_H" if teacher.use_belief else "log π_H"
     print(f"per-step expectedness (Σ {terms} per step, as the run's participants answer) of {episodes} episodes, "
           f"{len(persons)} attentive participants of {run}")  # fmt: skip
@@ -126,11 +179,14 @@ def main() -> None:
     ap.add_argument("--sleet", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--run", type=Path, help="a driving run folder: score by its participants' expectations")
+    ap.add_argument("--expected", action="store_true", help="with --run: the participants' own expected episodes")
     args = ap.parse_args()
     world = make_world(sleet=args.sleet)
     key = jax.random.key(args.seed)
+    if args.expected and args.run is None:
+        raise SystemExit("--expected needs --run DIR")
     if args.run is not None:
-        return expectedness(args.run, world, args.episodes, key)
+        return (expected_episodes if args.expected else expectedness)(args.run, world, args.episodes, key)
     print(f"mean return over {args.episodes} episodes (± standard error); study's average importances")
     print(f"{'road':<8} {'policy':<28} {'r_A (lane following)':>22} {'r_H (same lane)':>18}")
     for road, params in (("dry", world.beliefs["dry"]), (f"sleet {args.sleet:g}", world.params)):

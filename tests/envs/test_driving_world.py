@@ -46,7 +46,9 @@ def test_the_world_follows_the_interface(key):
     obs = world.env.observe(s, world.params)
     assert obs.shape == (11,) and obs.dtype == jnp.float32
     # the units: lane 1's centre, 25 m/s, the front car 35 m ahead (30 m gap + one car length)
-    assert np.allclose(np.asarray(obs)[[0, 2, 3, 4, 8, 9, 10]], [1.0, 25 / 30, 1.0, 25 / 30, (42.5 + 5) / 100, 1.0, 25 / 30])
+    assert np.allclose(
+        np.asarray(obs)[[0, 2, 3, 4, 8, 9, 10]], [1.0, 25 / 30, 1.0, 25 / 30, (42.5 + 5) / 100, 1.0, 25 / 30]
+    )
     assert world.obs_units().shape == (11,) and world.trace(obs[None]).shape == (1, 2)
     assert make_world(traffic=2).env.observation_space.dim == 17
     assert make_world().env == DRIVING_ENV  # one Env object: learners compile once for every sleet level

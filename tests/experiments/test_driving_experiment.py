@@ -173,3 +173,26 @@ def test_workers_run_the_participants_first_and_the_testing_phase_last():
     assert jobs["driving/people"] == ()
     assert all(jobs[f"driving/{m}"] == ("driving/people",) for m in ("sac", "drlhp", "eps"))
     assert set(jobs["driving/testing"]) == {"driving/people", "driving/sac", "driving/drlhp", "driving/eps"}
+
+
+def test_each_participant_keeps_the_seed_whose_greedy_episodes_earn_the_most(monkeypatch):
+    """π_H is trained with several seeds per participant; the kept one is the best by the score (here a
+    stand-in score, the actor's first-layer sum, so that the choice can be checked)."""
+    from mindgap.algorithms.expected_policy import ExpectedPolicyConfig
+    from mindgap.algorithms.sac import SACConfig
+    from mindgap.envs.driving import make_world
+    from mindgap.teachers.drivers import Driver
+
+    world = make_world()
+    person = ExpectedPolicyConfig(
+        total_steps=200, chunk=100, seeds=3, sac=SACConfig(hidden=(8,), batch_size=16, learning_starts=100)
+    )
+    cfg = dataclasses.replace(driving.preset("fast"), person=person)
+    drivers = [Driver("a", True, (3, 5, 3, 4), 0.0), Driver("b", True, (4, 4, 4, 4), 1.0)]
+
+    def kept(sign):
+        monkeypatch.setattr(driving, "_greedy_return_h", lambda key, actor, *a: sign * jnp.sum(actor[0][0]))
+        return np.asarray(jnp.sum(driving.train_expected_policies(world, drivers, cfg)[0][0], axis=(1, 2)))
+
+    best, worst = kept(1.0), kept(-1.0)
+    assert best.shape == (2,) and np.all(best > worst)  # the same three seeds each time, ranked both ways
