@@ -12,6 +12,8 @@ changed by less than ``tol`` per observation, or the iteration cap).
 With ``keep < R`` it screens: after ``screen_iter`` iterations only the ``keep``
 restarts with the highest objective go on. Which basin a restart falls into shows
 long before it converges, so many cheap starts buy the reliability of many full fits.
+Until then the R restarts run in groups of ``keep`` through the program that then serves
+the survivors: one compiled chunk per fit rather than one for R and one for ``keep``.
 """
 
 from __future__ import annotations
@@ -166,7 +168,7 @@ def run_restarts(
             n = check_every  # one chunk length, one compiled program
             key, sub = jax.random.split(key)
             keys = jax.random.split(sub, (n_restarts, n))
-            new_states, obj = chunk(states, keys, data)
+            new_states, obj = _in_groups(chunk, states, keys, data, keep if screening else n_restarts)
             obj = np.asarray(obj, np.float64)
             bad = ~np.isfinite(obj) | ~_all_finite(new_states)
             failed |= bad
@@ -184,6 +186,25 @@ def run_restarts(
             bar.update(n)
             bar.set_postfix(best=f"{np.max(objective):.4g}", done=f"{int((converged | failed).sum())}/{n_restarts}")
     return RestartRun(states, objective, ids, it, converged, history, dropped, elapsed)
+
+
+def _in_groups(chunk, states, keys, data, size: int):
+    """``chunk`` over the restart axis in groups of ``size`` (the last one filled up with copies of the
+    first restart, whose results are dropped): the same results as one call, through the program of
+    ``size`` restarts."""
+    r = keys.shape[0]
+    if size >= r:
+        return chunk(states, keys, data)
+    pad = -r % size
+    if pad:
+        fill = np.concatenate([np.arange(r), np.zeros(pad, int)])
+        states, keys = jax.tree_util.tree_map(lambda x: x[fill], states), keys[fill]
+    outs = [
+        chunk(jax.tree_util.tree_map(lambda x, i=i: x[i : i + size], states), keys[i : i + size], data)
+        for i in range(0, r + pad, size)
+    ]
+    new = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs)[:r], *[o[0] for o in outs])
+    return new, jnp.concatenate([o[1] for o in outs])[:r]
 
 
 def _expand(mask, like):
