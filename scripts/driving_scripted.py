@@ -21,7 +21,8 @@ alone for a run made with ``--answers-by decisions`` (:func:`mindgap.teachers.dr
 averaged over the attentive participants and the episodes. With ``--run DIR --expected`` it prints
 what each attentive participant expects the car to do: their π_H's own episodes (actions drawn
 from π_H) in the world as they believe it — how often the expected car changes lane before the
-front car brakes, and its first decision once it brakes:
+front car brakes, its first decision once it brakes, and how expected those episodes look per
+step to the participant themselves, to set beside the scripted policies' scores:
 
     .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0] [--run DIR [--expected]]
 """
@@ -125,7 +126,7 @@ def expected_episodes(run: Path, world, episodes: int, key) -> None:
             ka, ks = jax.random.split(kt)
             a = sample_categorical(actor, obs, ka)[0][0]
             out = env.step(ks, state, a, params)
-            return (out.state, done | out.terminated | out.truncated), (obs, a, ~done)
+            return (out.state, done | out.terminated | out.truncated), (obs, a, env.observe(out.state, params), ~done)
 
         _, steps = jax.lax.scan(body, (env.reset(k0, params), jnp.zeros((), bool)), jax.random.split(k1, world.horizon))
         return steps
@@ -135,10 +136,15 @@ def expected_episodes(run: Path, world, episodes: int, key) -> None:
         f"{episodes} episodes of each attentive participant's π_H (actions drawn from it) in the world they believe in"
     )
     print(f"{'participant':<12} {'belief':<7} {'changes lane before it brakes':>30} | first decision once it brakes: "
-          f"{'SLOWER':>7} {'lane change':>12} {'IDLE/FASTER':>12}")  # fmt: skip
+          f"{'SLOWER':>7} {'lane change':>12} {'IDLE/FASTER':>12} | own episodes' expectedness per step")  # fmt: skip
     rows = []
-    for d, actor in participants(run, world)[0]:
-        obs, act, live = map(np.asarray, many(actor, dr.belief_params(world, d), jax.random.split(key, episodes)))
+    pairs, teacher = participants(run, world)
+    for d, actor in pairs:
+        belief = dr.belief_params(world, d)
+        steps = many(actor, belief, jax.random.split(key, episodes))
+        seg = Segments(steps[0], steps[1][..., None].astype(jnp.float32), steps[2], steps[3].astype(jnp.float32))
+        own = float(np.mean(per_step_scores(seg, ExpectationTeacher(belief, actor, env), teacher)))
+        obs, act, _, live = map(np.asarray, steps)
         act = act.astype(int)
         braking = (obs[..., 7] > 0.5) & live
         onset = np.where(braking.any(1), np.argmax(braking, 1), world.horizon)
@@ -150,13 +156,14 @@ def expected_episodes(run: Path, world, episodes: int, key) -> None:
             np.mean(np.isin(first, (LEFT, RIGHT))),
             np.mean(np.isin(first, (IDLE, FASTER))),
         ]
-        rows.append([before.mean(), *shares])
-        belief = "dry" if d.believed_sleet == 0 else f"{d.believed_sleet:g}"
+        rows.append([before.mean(), *shares, own])
+        name = "dry" if d.believed_sleet == 0 else f"{d.believed_sleet:g}"
         print(
-            f"{d.pid:<12} {belief:<7} {before.mean():>30.2f} | {'':>31}{shares[0]:>7.2f} {shares[1]:>12.2f} {shares[2]:>12.2f}"
+            f"{d.pid:<12} {name:<7} {before.mean():>30.2f} | {'':>31}{shares[0]:>7.2f} {shares[1]:>12.2f} "
+            f"{shares[2]:>12.2f} | {own:>8.2f}"
         )
     m = np.mean(rows, 0)
-    print(f"{'mean':<12} {'':<7} {m[0]:>30.2f} | {'':>31}{m[1]:>7.2f} {m[2]:>12.2f} {m[3]:>12.2f}")
+    print(f"{'mean':<12} {'':<7} {m[0]:>30.2f} | {'':>31}{m[1]:>7.2f} {m[2]:>12.2f} {m[3]:>12.2f} | {m[4]:>8.2f}")
 
 
 def expectedness(run: Path, world, episodes: int, key) -> None:
