@@ -23,6 +23,20 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
     assert "entropy_bonus must be non-negative" in capsys.readouterr().err
 
 
+def test_queries_from_is_a_flag_of_every_learner_that_asks_and_a_checked_schedule_field():
+    from mindgap.algorithms.eps_config import EPSConfig
+    from mindgap.algorithms.pbrl import method_config
+    from mindgap.cli import _parser
+
+    parse = _parser().parse_args
+    for cmd in ("pebble", "drlhp", "prefbias", "eps"):
+        assert parse([cmd, "--world", "d1", "--out", "x"]).queries_from == "anywhere"
+        assert parse([cmd, "--world", "d1", "--out", "x", "--queries-from", "start"]).queries_from == "start"
+    assert method_config("pebble", queries_from="start").queries_from == "start"
+    with pytest.raises(ValueError, match="queries_from must be one of anywhere, start"):
+        EPSConfig(queries_from="middle").check()
+
+
 def test_exploration_flags_reach_the_sac_config():
     from mindgap.algorithms.engine import EXPLORATION
     from mindgap.algorithms.pbrl import method_config

@@ -47,6 +47,37 @@ def test_segments_never_cross_episodes_or_terminals(key):
         assert 7 not in kept[:-1]  # a terminal step can only be last
 
 
+def test_segments_from_the_start_begin_at_every_stored_episode_start_and_only_there(key):
+    buf = _filled(n=20, capacity=16, episode=5)  # a wrapped ring: transitions 4 … 19 kept, starts 5, 10, 15
+    seg = sample_segments(buf, key, 600, 3, from_start=True)
+    first = np.asarray(seg.obs[:, 0, 0]).astype(int)
+    assert set(first.tolist()) == {5, 10, 15}
+    counts = np.bincount(first)[[5, 10, 15]]
+    assert counts.min() > 600 / 3 - 4 * np.sqrt(600 * (1 / 3) * (2 / 3))  # uniform among the starts, 4 sd
+    assert np.asarray(seg.mask).all()  # three steps fit in every episode
+    # a buffer without any episode start falls back to starting anywhere
+    mid = replay_init(8, 2, 2)
+    for i in range(6):
+        o = jnp.array([i, 0.0])
+        mid = replay_add(mid, o, jnp.zeros(2), o + 1, 0.0, 0.0, False, i + 3)
+    anywhere = np.asarray(sample_segments(mid, key, 200, 2, from_start=True).obs[:, 0, 0]).astype(int)
+    assert set(anywhere.tolist()) <= set(range(6)) and len(set(anywhere.tolist())) > 1
+
+
+def test_queries_from_the_start_are_picked_among_episode_starts(key):
+    from mindgap.feedback.queries import select_queries
+
+    buf = _filled(n=16, capacity=16, episode=4)
+
+    def probs(seg_a, seg_b):  # a one-member "ensemble" that is least sure about the last pairs
+        return jnp.linspace(0.0, 0.5, seg_a.obs.shape[0])[None, :]
+
+    seg_a, seg_b = select_queries(key, buf, probs, 5, 3, "entropy", 4, from_start=True)
+    for seg in (seg_a, seg_b):
+        assert seg.obs.shape == (5, 3, 2)
+        assert set(np.asarray(seg.obs[:, 0, 0]).astype(int).tolist()) <= {0, 4, 8, 12}
+
+
 def _nstep_reference(buf, i, n, gamma):
     """Plain-Python n-step transition starting at slot i (written independently of the jitted code)."""
     buf = jax.tree.map(np.asarray, buf)

@@ -54,6 +54,10 @@ PrefBias, EPS): pink action noise and a decaying state-entropy bonus (see
 :class:`~mindgap.algorithms.sac.SACConfig`). Why: docs/experiments/pbrl.md, "SAC, the oracle"."""
 
 
+QUERIES_FROM = ("anywhere", "start")
+"""Where query segments may start (:attr:`Schedule.queries_from`)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Schedule:
     """What every method's config shares: the schedule, the budget and the simulated person's knobs.
@@ -81,6 +85,10 @@ class Schedule:
     """Steps between feedback rounds."""
     segment: int = 10
     """Steps per segment."""
+    queries_from: str = "anywhere"
+    """Where query segments start: ``anywhere`` in the replay buffer, or ``start``, an episode's first
+    step, so that both segments of a pair show what the agent did from the world's starting situation
+    (a study that sets a scene and asks which continuation is expected, as Fig. 33 does)."""
     explore_steps: int = 0
     """State-entropy pre-training steps (PEBBLE's phase; 0 for none)."""
     knn: int = 5
@@ -93,6 +101,8 @@ class Schedule:
     """Base seed; seed i of a run uses seed + i."""
 
     def check_schedule(self) -> None:
+        if self.queries_from not in QUERIES_FROM:
+            raise ValueError(f"queries_from must be one of {', '.join(QUERIES_FROM)}, got {self.queries_from!r}")
         for name in ("total_steps", "eval_every", "feedback_every", "explore_steps"):
             if getattr(self, name) % self.chunk:
                 raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")

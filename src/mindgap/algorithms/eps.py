@@ -134,7 +134,16 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
     seg_a = seg_b = None
     if cfg.surrogate == "learned":
         probs = partial(preference_probs, m.reward.params)
-        seg_a, seg_b = select_queries(k_q, buf, probs, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates)
+        seg_a, seg_b = select_queries(
+            k_q,
+            buf,
+            probs,
+            cfg.per_round,
+            cfg.segment,
+            cfg.sampler,
+            cfg.candidates,
+            from_start=cfg.queries_from == "start",
+        )
     return m._replace(dynamics=dyn, started=jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
 
 

@@ -136,8 +136,9 @@ def _select(model: RewardState, replay, key, w, env, cfg: PbRLConfig):
     key, k_q, k_t, k_r = jax.random.split(key, 4)
     probs = partial(preference_probs, model.params)
     seg_a, seg_b = select_queries(
-        k_q, replay, probs, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates, cfg.absorbing
-    )
+        k_q, replay, probs, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates, cfg.absorbing,
+        cfg.queries_from == "start",
+    )  # fmt: skip
     return model, seg_a, seg_b, (key, k_t, k_r)
 
 

@@ -155,8 +155,9 @@ def _select(m: PrefBiasModel, buf, key, w, env, cfg: PrefBiasLoopConfig):
     dyn, _ = train_dynamics(k_dyn, buf.obs, buf.act, buf.next_obs, valid, pcfg.dynamics, init=start)
     model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn, w.units), with_dynamics(m.posterior, dyn, pcfg))
     seg_a, seg_b = select_queries(
-        k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples
-    )
+        k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples,
+        cfg.queries_from == "start",
+    )  # fmt: skip
     return PrefBiasModel(model, dyn, jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
 
 

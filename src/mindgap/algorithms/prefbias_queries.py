@@ -91,10 +91,12 @@ def select_queries(
     cfg: PrefBiasConfig,
     candidates: int = 3,
     samples: int = 8,
+    from_start: bool = False,
 ) -> tuple[Segments, Segments]:
     """K pairs of segments to show the person, the best K of ``candidates × K`` random pairs.
 
-    Jittable with ``k, length, sampler, cfg, candidates, samples`` static.
+    Jittable with ``k, length, sampler, cfg, candidates, samples, from_start`` static; ``from_start``:
+    segments start at episodes' first steps (``Schedule.queries_from``).
 
     Returns:
         (seg_a, seg_b), each [K, L, ·]: :class:`~mindgap.data.segments.AbsorbingSegments`
@@ -104,7 +106,7 @@ def select_queries(
         raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
     ka, kb, ks = jax.random.split(key, 3)
     m = k * (1 if sampler == "uniform" else candidates)
-    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, cfg.absorbing)
+    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, cfg.absorbing, from_start)
     if sampler == "uniform":
         return seg_a, seg_b
     return keep_best(seg_a, seg_b, candidate_scores(state, dynamics, seg_a, seg_b, ks, sampler, cfg, samples), k)

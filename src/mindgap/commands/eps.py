@@ -17,7 +17,14 @@ from __future__ import annotations
 import argparse
 
 from ..feedback.queries import SAMPLERS
-from .learn import add_belief_env_flag, add_env_flag, add_person_flags, add_run_flags, with_belief_env
+from .learn import (
+    add_belief_env_flag,
+    add_env_flag,
+    add_person_flags,
+    add_queries_from_flag,
+    add_run_flags,
+    with_belief_env,
+)
 
 
 def add_parser(sub) -> None:
@@ -41,6 +48,7 @@ def add_parser(sub) -> None:
     p.add_argument("--queries", type=int, help="query budget (default 800)")
     p.add_argument("--per-round", type=int, help="queries per feedback round (default 80)")
     p.add_argument("--sampler", default="disagreement", help=f"{', '.join(SAMPLERS)} (default disagreement)")
+    add_queries_from_flag(p)
     add_person_flags(p)
     p.add_argument(
         "--nats-per-unit",
@@ -112,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         sac=sac_config(args),
         sampler=args.sampler,
+        queries_from=args.queries_from,
         centre_entropy=args.centre_entropy,
         surrogate=args.surrogate,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),

@@ -12,7 +12,7 @@ import io
 import json
 from pathlib import Path
 
-from ..algorithms.engine import Schedule
+from ..algorithms.engine import QUERIES_FROM, Schedule
 from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS
 from ..algorithms.sac import SACConfig
 from ..teachers.preference import TeacherConfig
@@ -47,6 +47,7 @@ def add_parsers(sub) -> None:
             p.add_argument("--queries", type=int, help="query budget (default 800)")
             p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
             p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
+            add_queries_from_flag(p)
             add_person_flags(p)
             p.add_argument(
                 "--absorbing",
@@ -141,6 +142,17 @@ def beta_value(text: str) -> float | None:
     if not beta > 0:
         raise argparse.ArgumentTypeError(f"beta must be positive (or inf), got {text!r}")
     return beta
+
+
+def add_queries_from_flag(p) -> None:
+    """``--queries-from``: where query segments start (:attr:`~mindgap.algorithms.engine.Schedule.queries_from`)."""
+    p.add_argument(
+        "--queries-from",
+        choices=QUERIES_FROM,
+        default="anywhere",
+        help="where query segments start: anywhere in the replay buffer (default), or at an episode's start, "
+        "so both segments of a pair show a behaviour from the world's starting situation",
+    )
 
 
 def add_person_flags(p) -> None:
@@ -251,6 +263,7 @@ def run(args: argparse.Namespace) -> int:
             queries=base.queries if args.queries is None else args.queries,
             per_round=base.per_round if args.per_round is None else args.per_round,
             sampler=args.sampler,
+            queries_from=args.queries_from,
             teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
         )
         if args.absorbing is not None:

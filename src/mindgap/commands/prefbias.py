@@ -14,7 +14,14 @@ import argparse
 from ..algorithms.prefbias import PrefBiasLoopConfig
 from ..algorithms.prefbias_inference import PrefBiasConfig
 from ..algorithms.prefbias_queries import SAMPLERS
-from .learn import add_belief_env_flag, add_env_flag, add_person_flags, add_run_flags, with_belief_env
+from .learn import (
+    add_belief_env_flag,
+    add_env_flag,
+    add_person_flags,
+    add_queries_from_flag,
+    add_run_flags,
+    with_belief_env,
+)
 
 
 def _on(flag: bool) -> str:
@@ -40,6 +47,7 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--sampler", default="preference_disagreement", help=f"{', '.join(SAMPLERS)} (default preference_disagreement)"
     )
+    add_queries_from_flag(p)
     p.add_argument("--prior", default="dynamics", help="centre of the belief prior: dynamics (f_ψ, default) or random")
     p.add_argument("--explore-steps", type=int, help="state-entropy pre-training steps (default 4000, as PEBBLE)")
     p.add_argument(
@@ -95,6 +103,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         sac=sac,
         sampler=args.sampler,
+        queries_from=args.queries_from,
         prefbias=dataclasses.replace(
             base.prefbias,
             belief_prior=args.prior,

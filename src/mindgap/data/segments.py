@@ -78,14 +78,23 @@ def with_absorbing(seg, absorbing: bool):
     return Segments(seg.obs, seg.act, seg.next_obs, seg.mask)
 
 
-def sample_segments(buf: Replay, key: jax.Array, count: int, length: int, absorbing: bool = False):
+def sample_segments(
+    buf: Replay, key: jax.Array, count: int, length: int, absorbing: bool = False, from_start: bool = False
+):
     """``count`` segments starting at uniformly drawn stored transitions.
+
+    With ``from_start`` they start only at an episode's first transition (``ep_step == 0``), so
+    two segments of a world whose episodes begin in one situation show two behaviours from that
+    situation; uniformly anywhere when the buffer holds no episode start.
 
     Returns:
         :class:`Segments`, or with ``absorbing`` :class:`AbsorbingSegments` whose steps after a
         terminal transition are marked ``absorbed`` (the mask is the same either way).
     """
     start = jax.random.randint(key, (count,), 0, jnp.maximum(buf.size, 1))
+    if from_start:
+        first = (buf.ep_step == 0) & (jnp.arange(buf.capacity) < buf.size)
+        start = jnp.where(first.any(), _draw_among(first, key, count), start)
     idx = (start[:, None] + jnp.arange(length)[None, :]) % buf.capacity  # [K, L]
     ep = buf.ep_step[idx]
     contiguous = (ep == ep[:, :1] + jnp.arange(length)[None, :]) & (ep >= 0)
@@ -96,6 +105,13 @@ def sample_segments(buf: Replay, key: jax.Array, count: int, length: int, absorb
     # the last real step was terminal: everything after it is absorbing
     ended = jnp.cumsum(mask & buf.terminal[idx], axis=1) - (mask & buf.terminal[idx]) > 0
     return AbsorbingSegments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask, ended & ~mask)
+
+
+def _draw_among(eligible: jax.Array, key: jax.Array, count: int) -> jax.Array:
+    """``count`` indices drawn uniformly among the True entries of ``eligible [N]`` (at least one)."""
+    cum = jnp.cumsum(eligible.astype(jnp.int32))
+    u = jax.random.randint(key, (count,), 0, jnp.maximum(cum[-1], 1))
+    return jnp.minimum(jnp.searchsorted(cum, u, side="right"), eligible.shape[0] - 1)
 
 
 def take(seg, idx: jax.Array):

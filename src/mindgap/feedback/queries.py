@@ -34,9 +34,11 @@ def query_scores(probs: jax.Array, sampler: str) -> jax.Array:
     raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
 
 
-def candidate_pairs(ka, kb, buf: Replay, count: int, length: int, absorbing: bool = False):
-    """``count`` random pairs of segments of ``length`` steps, side a drawn with ``ka``, side b with ``kb``."""
-    return sample_segments(buf, ka, count, length, absorbing), sample_segments(buf, kb, count, length, absorbing)
+def candidate_pairs(ka, kb, buf: Replay, count: int, length: int, absorbing: bool = False, from_start: bool = False):
+    """``count`` random pairs of segments of ``length`` steps, side a drawn with ``ka``, side b with ``kb``
+    (with ``from_start``, both from episodes' first steps: :func:`~mindgap.data.segments.sample_segments`)."""
+    a = sample_segments(buf, ka, count, length, absorbing, from_start)
+    return a, sample_segments(buf, kb, count, length, absorbing, from_start)
 
 
 def keep_best(seg_a, seg_b, scores: jax.Array, k: int):
@@ -46,7 +48,15 @@ def keep_best(seg_a, seg_b, scores: jax.Array, k: int):
 
 
 def select_queries(
-    key, buf: Replay, probs_fn, k: int, length: int, sampler: str, candidates: int, absorbing: bool = False
+    key,
+    buf: Replay,
+    probs_fn,
+    k: int,
+    length: int,
+    sampler: str,
+    candidates: int,
+    absorbing: bool = False,
+    from_start: bool = False,
 ):
     """K pairs of segments to show the person.
 
@@ -54,13 +64,14 @@ def select_queries(
         probs_fn: ``(seg_a, seg_b) → P(a ≻ b) [E, M]`` of each of the learner's E members.
         absorbing: keep the steps after a terminal transition as absorbing steps
             (:class:`~mindgap.data.segments.AbsorbingSegments`).
+        from_start: segments start at episodes' first steps (``Schedule.queries_from = "start"``).
 
     Returns:
         (seg_a, seg_b), each [K, L, ·].
     """
     ka, kb = jax.random.split(key)
     m = k * (1 if sampler == "uniform" else candidates)
-    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, absorbing)
+    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, absorbing, from_start)
     if sampler == "uniform":
         return seg_a, seg_b
     return keep_best(seg_a, seg_b, query_scores(probs_fn(seg_a, seg_b), sampler), k)
