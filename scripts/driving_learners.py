@@ -15,7 +15,7 @@ a biased participant believes in; default the run's):
 
     .venv/bin/python scripts/driving_learners.py --run results/driving --method drlhp \\
         [--queries-from anywhere|start] [--answers-by protocol|decisions] [--segment 5] \\
-        [--mistake P] [--entropy-bonus B] [--lam L] [--exact PID] [--road S] [--out DIR]
+        [--mistake P] [--entropy-bonus B] [--lam L] [--nats-per-unit S] [--exact PID] [--road S] [--out DIR]
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ def main() -> None:
         "--entropy-bonus", type=float, default=None, help="the state-entropy bonus's weight (default the preset's)"
     )
     p.add_argument("--lam", type=float, default=None, help="EPS's λ (default the preset's 2.0)")
+    p.add_argument("--nats-per-unit", type=float, default=None, help="EPS's s_H (default the preset's 7)")
     p.add_argument("--exact", metavar="PID", help="u_H is this participant's own score (no queries)")
     p.add_argument("--road", type=float, default=None, help="the sleet of the road driven on (default the run's)")
     p.add_argument("--out", type=Path, default=None, help="scratch run folder (default: a temporary one)")
@@ -66,6 +67,7 @@ def main() -> None:
         segment=args.segment or cfg.eps.segment,
         sac=sac,
         lam=cfg.eps.lam if args.lam is None else args.lam,
+        nats_per_unit=cfg.eps.nats_per_unit if args.nats_per_unit is None else args.nats_per_unit,
     )
     teacher = dataclasses.replace(cfg.teacher, use_belief=args.answers_by == "protocol", mistake=args.mistake)
     cfg = dataclasses.replace(cfg, eps=eps, teacher=teacher)
@@ -111,6 +113,10 @@ def exact(folder: RunFolder, cfg, job, pid: str) -> dict:
     )
     ecfg = dataclasses.replace(job.cfg, surrogate="exact")
     res = eps_alg.train(world, ecfg, person, person_name=pid, seeds=cfg.seeds, out=folder.root / "exact")
+    spread = ", ".join(f"{float(v):.2f}" for v in res["carry"].model.u_norm[:, 1])
+    print(
+        f"u_H's standard deviation over each seed's buffer [nats]: {spread} (the entropies' s_H: {ecfg.nats_per_unit})"
+    )
     return dr.learner_record(cfg, world, res["carry"].loop.sac.params.actor, res)
 
 
