@@ -32,7 +32,8 @@ def test_queries_from_is_a_flag_of_every_learner_that_asks_and_a_checked_schedul
     for cmd in ("pebble", "drlhp", "prefbias", "eps"):
         assert parse([cmd, "--world", "d1", "--out", "x"]).queries_from == "anywhere"
         assert parse([cmd, "--world", "d1", "--out", "x", "--queries-from", "start"]).queries_from == "start"
-    assert method_config("pebble", queries_from="start").queries_from == "start"
+    assert method_config("pebble", queries_from="start").as_dict()["queries_from"] == "start"
+    assert "queries_from" not in method_config("pebble").as_dict()  # earlier run folders still resume
     with pytest.raises(ValueError, match="queries_from must be one of anywhere, start"):
         EPSConfig(queries_from="middle").check()
 

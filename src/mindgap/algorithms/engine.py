@@ -116,7 +116,10 @@ class Schedule:
         return self.sac.learning_starts + self.explore_steps
 
     def as_dict(self) -> dict:
-        return dataclasses.asdict(self)
+        d = dataclasses.asdict(self)
+        if self.queries_from == "anywhere":  # recorded only when set, so earlier run folders still resume
+            del d["queries_from"]
+        return d
 
 
 FAST_SCHEDULE = dict(
