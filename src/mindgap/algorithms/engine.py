@@ -111,6 +111,11 @@ class Schedule:
         if self.learning_steps() >= self.total_steps:
             raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
 
+    @property
+    def queries_from_start(self) -> bool:
+        """Whether query segments start at episodes' first steps (:attr:`queries_from` is ``start``)."""
+        return self.queries_from == "start"
+
     def learning_steps(self) -> int:
         """First step of the ``train`` phase (and of the first feedback round)."""
         return self.sac.learning_starts + self.explore_steps

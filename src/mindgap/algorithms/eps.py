@@ -142,7 +142,7 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
             cfg.segment,
             cfg.sampler,
             cfg.candidates,
-            from_start=cfg.queries_from == "start",
+            from_start=cfg.queries_from_start,
         )
     return m._replace(dynamics=dyn, started=jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
 

@@ -137,7 +137,7 @@ def _select(model: RewardState, replay, key, w, env, cfg: PbRLConfig):
     probs = partial(preference_probs, model.params)
     seg_a, seg_b = select_queries(
         k_q, replay, probs, cfg.per_round, cfg.segment, cfg.sampler, cfg.candidates, cfg.absorbing,
-        from_start=cfg.queries_from == "start",
+        from_start=cfg.queries_from_start,
     )  # fmt: skip
     return model, seg_a, seg_b, (key, k_t, k_r)
 

@@ -156,7 +156,7 @@ def _select(m: PrefBiasModel, buf, key, w, env, cfg: PrefBiasLoopConfig):
     model = _where(first, prefbias_init(k_init, d, a, pcfg, dyn, w.units), with_dynamics(m.posterior, dyn, pcfg))
     seg_a, seg_b = select_queries(
         k_q, buf, model, dyn, cfg.per_round, cfg.segment, cfg.sampler, pcfg, cfg.candidates, cfg.samples,
-        from_start=cfg.queries_from == "start",
+        from_start=cfg.queries_from_start,
     )  # fmt: skip
     return PrefBiasModel(model, dyn, jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
 
