@@ -83,13 +83,17 @@ def _both(actions, params, grips, onset, seed=0, **env_kwargs):
     for k, (a, mu) in enumerate(zip(actions, grips)):
         nxt = _advance(s, jnp.int32(a), jnp.float32(mu), jnp.asarray(k >= onset), params)
         r_jax = float(reward(observe(s, params), a, observe(nxt, params), params))
-        obs_hw, r_hw, crashed_hw, _, _ = env.step(a)
+        obs_hw, r_hw, ended_hw, truncated_hw, _ = env.step(a)
+        crashed_hw = env.vehicle.crashed
+        # the horizon ends the task in both versions (world.py, "The horizon is terminal")
+        assert ended_hw == (crashed_hw or k == len(actions) - 1) and not truncated_hw, k
         s = nxt
         jax_ego = np.array([float(s.x), float(s.y), float(s.heading), float(s.speed)])
         out.append((jax_ego, env.ego_state(), np.asarray(observe(s, params)), obs_hw, r_jax, r_hw))
         if bool(s.crashed) or crashed_hw:
             if not crashed_hw:  # highway-env marks the car crashed one integration step after its test fires
-                crashed_hw = env.step(I)[2]
+                env.step(I)
+                crashed_hw = env.vehicle.crashed
             assert bool(s.crashed) and crashed_hw, f"only one version collided at decision {k}"
             out.pop()  # the collision's own step: positions differ by design
             break

@@ -110,6 +110,19 @@ def test_a_finished_episode_stays_put(key):
     assert all(np.array_equal(a, b) for a, b in zip(jax.tree.leaves(again.state), jax.tree.leaves(out.state)))
 
 
+def test_the_last_decision_ends_the_task(key):
+    """The horizon is terminal, not a truncation: the observation carries the time, so nothing is
+    bootstrapped past the clip's last decision (world.py's module docstring)."""
+    p = make_params(sleet=0.0)
+    s = reset(key, p)
+    for t in range(int(p.horizon)):
+        out = step_jit(jax.random.fold_in(key, t), s, jnp.int32(SLOWER), p)
+        last = t == int(p.horizon) - 1
+        assert bool(out.terminated) == last and not bool(out.truncated) and not bool(out.state.crashed), t
+        s = out.state
+    assert float(observe(s, p)[5]) == 1.0
+
+
 N = 512
 """Episodes per batch: every test runs batches of this size, so the batch compiles once."""
 

@@ -196,7 +196,8 @@ def _make_classes():
                 self.frames.append(self.render())
             reward = float(_reward(prev, np.int32(action), obs, self.params))
             info.update(grip=self.vehicle.grip, braking=self.front.braking)
-            return obs, reward, bool(self.vehicle.crashed), bool(truncated), info
+            # the horizon ends the task, as in the JAX world (world.py: "The horizon is terminal")
+            return obs, reward, bool(self.vehicle.crashed or truncated), False, info
 
         def _reward(self, action) -> float:
             return 0.0  # r_A is computed in step, from the observations

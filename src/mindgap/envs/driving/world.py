@@ -20,6 +20,15 @@ t ∈ [first, last] if it has not yet, so the onset is uniform and the chain is 
 observation; then 15 Euler steps of 1/15 s move every car, and a collision (highway-env's
 swept rectangle test) ends the episode.
 
+**The horizon is terminal.** An episode is the study's clip of ``horizon`` decisions, and the
+observation carries the decisions taken (``t / horizon``), so the last decision ends the task
+as a collision does: ``step`` reports both as ``terminated`` and never ``truncated``. A time
+limit is a truncation to bootstrap past only when the agent cannot see the time (Pardo et al.
+2018, "Time Limits in Reinforcement Learning"); here the state after the last decision
+(``t / horizon = 1``) never starts a stored transition, so a critic bootstrapping from it
+reads an extrapolation that nothing anchors, and the learners' critics diverged
+(docs/experiments/driving.md, Status).
+
 **The stochastic part and its exact density** (:func:`log_prob`): the onset (a Bernoulli of
 the hazard above) and, on a braking step, the next speed (sleet.py's Beta density through the
 speed map); the rest of the next state is a deterministic function of these, the state and the
@@ -133,19 +142,17 @@ def advance(state: DrivingState, action, mu, onset, params: DrivingParams) -> Dr
 def step(key: jax.Array, state: DrivingState, action, params: DrivingParams) -> Step:
     """One decision step: sample the braking factor and the front car's onset, advance, score.
 
-    ``terminated`` on a collision, ``truncated`` at the horizon; a finished state stays as it is
-    (reward 0, neither flag).
+    ``terminated`` on a collision and at the horizon (module docstring: the horizon is
+    terminal), never ``truncated``; a finished state stays as it is (reward 0, neither flag).
     """
     k_mu, k_onset = jax.random.split(key)
     mu = sample_factor(k_mu, params.sleet, params.grip)
     onset = jax.random.uniform(k_onset) < onset_hazard(state.t, params)
     nxt = advance(state, action, mu, onset, params)
-    terminated = nxt.crashed & ~state.crashed
-    truncated = ~terminated & (nxt.t >= params.horizon)
     r = reward(observe(state, params), action, observe(nxt, params), params)
     live = ~state.done
     nxt = jax.tree.map(lambda new, old: jnp.where(live, new, old), nxt, state)
-    return Step(nxt, jnp.where(live, r, 0.0), live & terminated, live & truncated)
+    return Step(nxt, jnp.where(live, r, 0.0), live & nxt.done, jnp.zeros_like(live))
 
 
 def observe(state: DrivingState, params: DrivingParams) -> jax.Array:
