@@ -196,3 +196,18 @@ def test_each_participant_keeps_the_seed_whose_greedy_episodes_earn_the_most(mon
 
     best, worst = kept(1.0), kept(-1.0)
     assert best.shape == (2,) and np.all(best > worst)  # the same three seeds each time, ranked both ways
+
+
+def test_the_smallest_gap_counts_only_cars_in_line():
+    """A car passing beside the front car mid-lane-change has no bumper gap to it: 2.4 m apart sideways
+    (more than a car's 2 m width) and 3 m apart lengthwise is not a gap of -2 m."""
+    from mindgap.envs.driving.world import DIST_SCALE, EGO_OBS
+
+    obs = np.zeros((1, 4, EGO_OBS + 3), np.float32)
+    ego_y = [1.0, 1.0, 1.6, 1.4]  # lane widths: in the lane, then beside it, then back nearly in line
+    ahead = [20.0, 18.0, 3.0, 12.0]  # metres, centre to centre
+    obs[0, :, 0], obs[0, :, 3] = ego_y, 1.0
+    obs[0, :, EGO_OBS], obs[0, :, EGO_OBS + 1] = np.asarray(ahead) / DIST_SCALE, 1.0
+    b = driving.behaviour(obs, np.full((1, 3, 1), IDLE, np.float32), np.ones((1, 3), bool), None)
+    # in line at steps 0, 1 (gaps 15, 13 m) and 3 (0.4 lane widths = 1.6 m apart: gap 7 m); step 2 is beside
+    assert b["min_gap"][0] == pytest.approx(7.0) and not b["collided"][0]

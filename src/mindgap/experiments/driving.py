@@ -22,7 +22,7 @@ learner resumes from its engine checkpoint): ``driving/people``, ``driving/sac``
 Measured per method, over seeds, on ``rollouts`` greedy episodes per seed in the sleety
 world (:func:`behaviour`): return under r_A (Table 5), collision rate, the first lane change
 (decisions after the front car starts braking; share of episodes with one), whether the car
-braked before it, and the smallest bumper gap to the front car while in its lane.
+braked before it, and the smallest bumper gap to the front car while in line with it.
 Outputs: ``results.csv``, ``participants.csv``, ``ratings.csv``, ``curves.csv``,
 ``table.md``, ``summary.json``, ``frames_METHOD.png`` (Figs. 34–36: three characteristic
 moments drawn by the highway-env version) and ``episode_METHOD.gif``.
@@ -47,7 +47,7 @@ from ..algorithms.sac_loop import agent_init, greedy_policy, loop_init, rollouts
 from ..checkpoint import load_pytree, save_pytree
 from ..data.rollouts_file import rollout_record, write_rollouts
 from ..envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
-from ..envs.driving.params import LENGTH, SLOWER
+from ..envs.driving.params import LANE_WIDTH, LENGTH, SLOWER, WIDTH
 from ..envs.driving.world import DIST_SCALE, EGO_OBS
 from ..teachers import drivers as dv
 from ..teachers.preference import TeacherConfig
@@ -411,7 +411,9 @@ def greedy_episodes(world, actor, key, count: int):
 def behaviour(obs: np.ndarray, act: np.ndarray, alive: np.ndarray, world) -> dict[str, np.ndarray]:
     """Per episode: collided; the first lane change in decisions after the front car starts braking (NaN:
     none; negative: before it); whether it changed lane; whether it braked (SLOWER) before its first lane
-    change after the onset; the smallest bumper gap [m] to the front car while in its lane."""
+    change after the onset; the smallest bumper gap [m] to the front car while it is ahead and the
+    two cars overlap sideways (centres less than a car's width apart: in line, so the gap is one a
+    collision would close; a car passing beside it mid-lane-change has no bumper gap to it)."""
     start = obs[:, 0, 3]
     steps = alive.sum(-1).astype(int)
     out = {k: [] for k in ("collided", "first_change", "changed", "braked_first", "min_gap")}
@@ -427,7 +429,8 @@ def behaviour(obs: np.ndarray, act: np.ndarray, alive: np.ndarray, world) -> dic
         out["first_change"].append(np.nan if change is None else float(change + 1 - onset))
         before = a[onset - 1 : change] if change is not None else a[max(onset - 1, 0) :]
         out["braked_first"].append(float(np.any(np.round(before) == SLOWER)))
-        same = (np.abs(o[:, 0] - o[:, EGO_OBS + 1]) < 1.0) & (o[:, EGO_OBS] > 0)  # in its lane, ahead of it
+        in_line = np.abs(o[:, 0] - o[:, EGO_OBS + 1]) * LANE_WIDTH < WIDTH  # lateral positions are in lane widths
+        same = in_line & (o[:, EGO_OBS] > 0)  # in line with it, and it is ahead
         gap = o[:, EGO_OBS] * DIST_SCALE - LENGTH
         out["min_gap"].append(float(gap[same].min()) if same.any() else np.nan)
     return {k: np.asarray(v, np.float64) for k, v in out.items()}

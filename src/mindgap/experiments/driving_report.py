@@ -107,7 +107,7 @@ def _table(cfg, by: dict, people: dict | None, testing: dict | None) -> str:
             *(pc.fmt(by[m]["first_change_mean"]) for m in cols),
         ],
         ["braked before changing lane", *(pc.share(by[m]["braked_first_mean"]) for m in cols)],
-        ["smallest gap to the front car in its lane [m]", *(pc.fmt(by[m]["min_gap_mean"]) for m in cols)],
+        ["smallest gap to the front car, in line with it [m]", *(pc.fmt(by[m]["min_gap_mean"]) for m in cols)],
     ]
     md += "\ndriving behaviours (Figs. 34–36), mean over seeds of each seed's greedy episodes:\n\n" + pc.markdown(
         head, beh
