@@ -162,6 +162,9 @@ def test_answers_by_decisions_reaches_the_participants(tmp_path, monkeypatch):
     monkeypatch.setattr(driving, "run", lambda cfg, out, **kw: seen.append(cfg) or {"job": {}})
     assert main(["reproduce", "driving", "--fast", "--answers-by", "decisions", "--job", "driving/people"]) == 0
     assert seen[0].teacher.use_belief is False and seen[0].teacher.beta == 1.0
+    # and DRLHP and EPS hand it to the crowd: the engine has a person answer by the learner's teacher config
+    learners = [job.cfg for job in driving.jobs(seen[0]) if job.method in ("drlhp", "eps")]
+    assert len(learners) == 2 and all(c.teacher == seen[0].teacher for c in learners)
     assert main(["reproduce", "eps", "--fast", "--answers-by", "decisions"]) == 2
 
 

@@ -124,13 +124,14 @@ def preset(name: str) -> DrivingConfig:
 
 
 def jobs(cfg: DrivingConfig) -> list[pc.Job]:
+    """The run's jobs. DRLHP's and EPS's configs carry the participants' way of answering
+    (``cfg.teacher``): the engine has the crowd answer by its learner's ``teacher`` config."""
     sac = _sac_cfg(cfg)
     out = [pc.Job(f"{WORLD}/people", WORLD, "people", "participants", cfg.population, {})]
     out.append(pc.Job(f"{WORLD}/sac", WORLD, "sac", "SAC", sac, {}))
-    out.append(pc.Job(f"{WORLD}/drlhp", WORLD, "drlhp", "DRLHP", dataclasses.replace(cfg.eps, method="drlhp"), {}))
-    out.append(
-        pc.Job(f"{WORLD}/eps", WORLD, "eps", "EPS", dataclasses.replace(cfg.eps, method="eps"), {"lam": cfg.eps.lam})
-    )
+    for method, label, tags in (("drlhp", "DRLHP", {}), ("eps", "EPS", {"lam": cfg.eps.lam})):
+        learner = dataclasses.replace(cfg.eps, method=method, teacher=cfg.teacher)
+        out.append(pc.Job(f"{WORLD}/{method}", WORLD, method, label, learner, tags))
     out.append(pc.Job(f"{WORLD}/testing", WORLD, "testing", "testing phase", cfg.raters, {}))
     return out
 
