@@ -214,3 +214,15 @@ def test_the_smallest_gap_counts_only_cars_in_line():
     b = driving.behaviour(obs, np.full((1, 3, 1), IDLE, np.float32), np.ones((1, 3), bool), None)
     # in line at steps 0, 1 (gaps 15, 13 m) and 3 (0.4 lane widths = 1.6 m apart: gap 7 m); step 2 is beside
     assert b["min_gap"][0] == pytest.approx(7.0) and not b["collided"][0]
+
+
+@pytest.mark.parametrize("braked_first, changed, held", [(0.0, 1.0, False), (1.0, 1.0, True), (0.0, 0.2, True)])
+def test_drlhp_must_brake_in_lane_for_its_claim(braked_first, changed, held):
+    """Closest to the front car is not enough: DRLHP must also brake before changing lane, or stay in lane."""
+    from mindgap.experiments.driving_report import _claims
+
+    row = dict(rating_mean=5.0, return_mean=10.0, first_change_mean=0.0, braked_first_mean=0.0, changed_mean=1.0)
+    by = {m: dict(row, min_gap_mean=40.0, collided_mean=0.0) for m in ("eps", "sac")}
+    by["drlhp"] = dict(row, min_gap_mean=20.0, collided_mean=0.0, braked_first_mean=braked_first, changed_mean=changed)
+    claim = next(c for c in _claims(by) if c["text"].startswith("driving: DRLHP brakes in lane"))
+    assert claim["held"] is held

@@ -164,8 +164,12 @@ def _claims(by: dict) -> list[dict]:
         out.append(
             pc.claim(
                 "driving: DRLHP brakes in lane and gets closest to the front car (or collides most)",
-                all(gap["drlhp"] < gap[m] or col["drlhp"] > col[m] for m in ("eps", "sac")),
-                ", ".join(f"{LABELS[m]} gap {gap[m]:.1f} m, collisions {pc.share(col[m])}" for m in METHODS),
+                # braking in lane: braking before any lane change, or staying in lane, in most episodes
+                (by["drlhp"]["braked_first_mean"] > 0.5 or by["drlhp"]["changed_mean"] < 0.5)
+                and all(gap["drlhp"] < gap[m] or col["drlhp"] > col[m] for m in ("eps", "sac")),
+                f"DRLHP braked first {pc.share(by['drlhp']['braked_first_mean'])}, "
+                f"stayed in lane {pc.share(1 - by['drlhp']['changed_mean'])}; "
+                + ", ".join(f"{LABELS[m]} gap {gap[m]:.1f} m, collisions {pc.share(col[m])}" for m in METHODS),
             )
         )
         out.append(
