@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import shutil
 import tempfile
 import time
@@ -70,7 +71,8 @@ def main() -> None:
         nats_per_unit=cfg.eps.nats_per_unit if args.nats_per_unit is None else args.nats_per_unit,
     )
     teacher = dataclasses.replace(cfg.teacher, use_belief=args.answers_by == "protocol", mistake=args.mistake)
-    cfg = dataclasses.replace(cfg, eps=eps, teacher=teacher)
+    traffic = json.loads((args.run / "config.json").read_text()).get("traffic", 0)  # the run's road
+    cfg = dataclasses.replace(cfg, eps=eps, teacher=teacher, traffic=traffic)
     if args.road is not None:
         cfg = dataclasses.replace(cfg, sleet=args.road)
     out = args.out or Path(tempfile.mkdtemp(prefix="driving-learner-"))

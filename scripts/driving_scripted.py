@@ -5,13 +5,16 @@ Checks the measurement behind the participants' fourth factor: with r_A's lane f
 lane change, whereas with Fig. 32's "staying on the same lane" (1 in the start lane, 0 one lane
 away; :func:`mindgap.teachers.drivers.stay_in_lane`) they would expect braking in lane.
 
-Four policies, each run for ``--episodes`` episodes on a dry road and at ``--sleet``:
+Five policies, each run for ``--episodes`` episodes on a dry road and at ``--sleet`` (with
+``--traffic N`` other cars, as ``mindgap reproduce driving --traffic N``):
 
 * ``brake in lane``: SLOWER once the front car brakes (IDLE before);
 * ``change lane when it brakes``: LANE_LEFT once the front car brakes (IDLE before);
 * ``change lane at once``: LANE_LEFT at the first step, IDLE after;
 * ``brake, then change lane``: SLOWER at the first decision after the front car brakes, LANE_LEFT
-  after (IDLE before): what EPS does in the dissertation (Fig. 36).
+  after (IDLE before): what EPS does in the dissertation (Fig. 36);
+* ``overtake and return``: LANE_LEFT once the front car brakes, IDLE in the next lane until the
+  front car is 15 m behind, then LANE_RIGHT back to the start lane.
 
 Both rewards use the study's average importances (Fig. 32). Prints the mean return (± its
 standard error) of each policy under each reward. With ``--run DIR`` (a ``mindgap reproduce
@@ -24,7 +27,7 @@ from π_H) in the world as they believe it — how often the expected car change
 front car brakes, its first decision once it brakes, and how expected those episodes look per
 step to the participant themselves, to set beside the scripted policies' scores:
 
-    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--seed 0] [--run DIR [--expected]]
+    .venv/bin/python scripts/driving_scripted.py [--episodes 200] [--sleet 1.0] [--traffic 0] [--seed 0] [--run DIR [--expected]]
 """
 
 from __future__ import annotations
@@ -42,25 +45,46 @@ import numpy as np
 from mindgap.data.segments import Segments
 from mindgap.envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
 from mindgap.envs.driving.params import ACTIONS
+from mindgap.envs.driving.world import DIST_SCALE, EGO_OBS
 from mindgap.experiments import driving as dr
 from mindgap.experiments import registry
 from mindgap.models.categorical import sample_categorical
 from mindgap.teachers.drivers import RewardH, participant_reward, per_step_scores
 from mindgap.teachers.expectation import ExpectationTeacher
 
+START_LANE = 1
+"""The start lane of the scenario's default road (``make_params``)."""
+PASSED = 15.0
+"""The overtaking script returns to its lane once the front car is this far behind [m]."""
 IDLE, LEFT, SLOWER = ACTIONS.index("IDLE"), ACTIONS.index("LANE_LEFT"), ACTIONS.index("SLOWER")
 RIGHT, FASTER = ACTIONS.index("LANE_RIGHT"), ACTIONS.index("FASTER")
-POLICIES = ("brake in lane", "change lane when it brakes", "change lane at once", "brake, then change lane")
+POLICIES = (
+    "brake in lane",
+    "change lane when it brakes",
+    "change lane at once",
+    "brake, then change lane",
+    "overtake and return",
+)
 
 
 def act(policy: int, obs: jax.Array, t: jax.Array, seen: jax.Array) -> jax.Array:
     """The scripted action of ``policy`` (an index into :data:`POLICIES`) at step ``t``, after ``seen``
     decisions with the front car braking."""
     front_brakes = obs[7] > 0.5  # the observation's "front car braking" flag
+    home = jnp.round(obs[3]) == START_LANE  # the target lane is the start lane
+    front_dx = obs[EGO_OBS] * DIST_SCALE  # the front car's distance ahead (centre to centre)
+    overtake = jnp.where(
+        home, jnp.where(front_brakes & (front_dx > 0), LEFT, IDLE), jnp.where(front_dx > -PASSED, IDLE, RIGHT)
+    )
     return jnp.select(
-        [policy == 0, policy == 1, policy == 2],
-        [jnp.where(front_brakes, SLOWER, IDLE), jnp.where(front_brakes, LEFT, IDLE), jnp.where(t == 0, LEFT, IDLE)],
-        jnp.where(front_brakes, jnp.where(seen == 0, SLOWER, LEFT), IDLE),
+        [policy == 0, policy == 1, policy == 2, policy == 3],
+        [
+            jnp.where(front_brakes, SLOWER, IDLE),
+            jnp.where(front_brakes, LEFT, IDLE),
+            jnp.where(t == 0, LEFT, IDLE),
+            jnp.where(front_brakes, jnp.where(seen == 0, SLOWER, LEFT), IDLE),
+        ],
+        overtake,
     )
 
 
@@ -184,11 +208,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--episodes", type=int, default=200)
     ap.add_argument("--sleet", type=float, default=1.0)
+    ap.add_argument("--traffic", type=int, default=0, help="other cars on the road (make_world's traffic)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--run", type=Path, help="a driving run folder: score by its participants' expectations")
     ap.add_argument("--expected", action="store_true", help="with --run: the participants' own expected episodes")
     args = ap.parse_args()
-    world = make_world(sleet=args.sleet)
+    traffic = args.traffic
+    if args.run is not None:  # the run's road
+        traffic = json.loads((args.run / "config.json").read_text()).get("traffic", 0)
+    world = make_world(sleet=args.sleet, traffic=traffic)
     key = jax.random.key(args.seed)
     if args.expected and args.run is None:
         raise SystemExit("--expected needs --run DIR")

@@ -127,6 +127,7 @@ def test_driving_fast_table5_behaviours_figures_and_resume(stand_ins, tmp_path, 
     "flags, message",
     [
         (["--sleet", "1.5"], "sleet must be in [0, 1]"),
+        (["--traffic", "5"], "traffic must be in 0 … 4"),
         (["--importance", "3,4,6,2"], "importance ratings must be in [1, 5]"),
         (["--importance", "3,4"], "importance must hold 4 ratings"),
         (["--importance", "a,b,c,d"], "--importance takes four numbers"),
@@ -148,6 +149,10 @@ def test_presets_and_the_rerun_command():
     assert registry.preset_of("driving", fast) == "fast"
     line = registry.command("driving", full.__class__(sleet=0.5), "runs/d")
     assert line == "mindgap reproduce driving --sleet 0.5 --out runs/d"
+    busy = dataclasses.replace(full, traffic=4)
+    assert registry.preset_of("driving", busy) == "full"
+    assert registry.command("driving", busy, "runs/d") == "mindgap reproduce driving --traffic 4 --out runs/d"
+    assert driving.world_of(busy).params.n_traffic == 4
     decisions = dataclasses.replace(full, teacher=dataclasses.replace(full.teacher, use_belief=False))
     assert registry.preset_of("driving", decisions) == "full"
     assert (

@@ -63,6 +63,8 @@ class DrivingConfig:
 
     sleet: float = 1.0
     """The sleet level of the road the agents drive on (0 dry … 1 full sleet)."""
+    traffic: int = 0
+    """Other cars on the road besides the front car (0 … 4; :func:`~mindgap.envs.driving.make_world`)."""
     importance: tuple[float, ...] = STUDY_IMPORTANCE
     """The population's mean importance answers (Fig. 32's averages)."""
     seeds: int = 5
@@ -88,6 +90,8 @@ class DrivingConfig:
 
     def __post_init__(self):
         dv.check_sleet_level(self.sleet)
+        if not 0 <= self.traffic <= 4:
+            raise ValueError(f"traffic must be in 0 … 4 (two cars in each of the other two lanes), got {self.traffic}")
         importance_weights(self.importance)  # one line for a rating outside [1, 5]
         for name in ("seeds", "participants", "raters", "rollouts", "shown"):
             if getattr(self, name) < 1:
@@ -183,8 +187,8 @@ def run(cfg: DrivingConfig, out: Path, *, fresh=False, progress=True, assemble_o
 def world_of(cfg: DrivingConfig, weights=None):
     """The sleety world, r_A weighted by ``weights`` (the engineered reward) when given."""
     if weights is None:
-        return make_world(sleet=cfg.sleet)
-    return make_world(sleet=cfg.sleet, weights=tuple(round(float(w), 6) for w in weights))
+        return make_world(sleet=cfg.sleet, traffic=cfg.traffic)
+    return make_world(sleet=cfg.sleet, traffic=cfg.traffic, weights=tuple(round(float(w), 6) for w in weights))
 
 
 def _compute(cfg: DrivingConfig):

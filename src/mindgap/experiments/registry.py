@@ -34,7 +34,7 @@ NAMES = tuple(MODULES)
 _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
-    "driving": ("seeds", "sleet", "importance"),
+    "driving": ("seeds", "sleet", "traffic", "importance"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -131,6 +131,8 @@ def command(name: str, config, out: str | Path) -> str:
         words += ["--participants", str(cfg["participants"])]
     if name == "driving" and cfg.get("sleet") != ref.get("sleet"):
         words += ["--sleet", f"{cfg['sleet']:g}"]
+    if name == "driving" and cfg.get("traffic", 0) != ref.get("traffic"):
+        words += ["--traffic", str(cfg.get("traffic", 0))]
     if name == "driving" and cfg.get("importance") != ref.get("importance"):
         words += ["--importance", ",".join(f"{v:g}" for v in cfg["importance"])]
     if name == "driving" and not (cfg.get("teacher") or {}).get("use_belief", True):
