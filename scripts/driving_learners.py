@@ -5,7 +5,8 @@ The participants (their answers to Fig. 32, beliefs and π_H) are the costly par
 This trains DRLHP or EPS (5 seeds, the full preset's schedule) on the participants of ``--run``
 in a scratch folder, with the query segments drawn from anywhere in the replay buffer or from
 episodes' starts (``--queries-from``) and the participants answering by the identifiable
-protocol or by log π_H alone (``--answers-by``), and prints the behaviours the experiment
+protocol or by log π_H alone (``--answers-by``), each decision scored as is or against the
+state's most expected one (``--relative``), and prints the behaviours the experiment
 measures (docs/experiments/driving.md, Status). Two controls: ``--mistake 0.5`` flips every
 answer with probability one half, so the answers carry nothing (a coin), and
 ``--entropy-bonus 0`` switches off the learners' state-entropy exploration bonus. With
@@ -15,7 +16,7 @@ a biased participant believes in; default the run's):
 
     .venv/bin/python scripts/driving_learners.py --run results/driving --method drlhp \\
         [--queries-from anywhere|start] [--answers-by protocol|decisions] [--segment 5] \\
-        [--mistake P] [--entropy-bonus B] [--lam L] [--nats-per-unit S] [--exact PID] [--road S] [--out DIR]
+        [--relative] [--mistake P] [--entropy-bonus B] [--lam L] [--nats-per-unit S] [--exact PID] [--road S] [--out DIR]
 """
 
 from __future__ import annotations
@@ -44,6 +45,11 @@ def main() -> None:
     p.add_argument("--queries-from", choices=("anywhere", "start"), default="anywhere")
     p.add_argument("--answers-by", choices=("protocol", "decisions"), default="protocol")
     p.add_argument("--segment", type=int, default=None, help="steps per query segment (default: the preset's 5)")
+    p.add_argument(
+        "--relative",
+        action="store_true",
+        help="participants score each decision against the state's most expected one (TeacherConfig.relative)",
+    )
     p.add_argument("--mistake", type=float, default=0.0, help="probability that an answer is flipped (0.5: a coin)")
     p.add_argument(
         "--entropy-bonus", type=float, default=None, help="the state-entropy bonus's weight (default the preset's)"
@@ -70,7 +76,9 @@ def main() -> None:
         lam=cfg.eps.lam if args.lam is None else args.lam,
         nats_per_unit=cfg.eps.nats_per_unit if args.nats_per_unit is None else args.nats_per_unit,
     )
-    teacher = dataclasses.replace(cfg.teacher, use_belief=args.answers_by == "protocol", mistake=args.mistake)
+    teacher = dataclasses.replace(
+        cfg.teacher, use_belief=args.answers_by == "protocol", mistake=args.mistake, relative=args.relative
+    )
     traffic = json.loads((args.run / "config.json").read_text()).get("traffic", 0)  # the run's road
     cfg = dataclasses.replace(cfg, eps=eps, teacher=teacher, traffic=traffic)
     if args.road is not None:
@@ -87,7 +95,7 @@ def main() -> None:
     else:
         rec = dr._compute(cfg)(folder, job, cfg.seeds, fresh=True, progress=True)
         what = f"queries from {args.queries_from}, answers by {args.answers_by}, {eps.segment}-step segments, "
-        what += f"mistake {args.mistake}"
+        what += f"mistake {args.mistake}" + (", relative scores" if args.relative else "")
     print(f"{args.method} (λ {eps.lam}) on {what}, road sleet {cfg.sleet}, entropy bonus {sac.entropy_bonus}: "
           f"{time.time() - t:.0f} s, {out}")  # fmt: skip
     for k, label in (

@@ -129,3 +129,21 @@ def test_a_participant_who_judges_decisions_scores_log_pi_alone():
     log_pi = categorical_log_prob(actor, seg.obs[0], seg.act[0])
     assert decisions == pytest.approx(float(jnp.sum(jnp.where(seg.mask[0], log_pi, 0.0))), rel=1e-5)
     assert float(dv.segment_scores(seg, teacher, TeacherConfig())[0]) != pytest.approx(decisions, rel=1e-3)
+
+
+def test_a_relative_participant_scores_each_decision_against_the_state_s_most_expected():
+    """``relative=True``: log π_H(a|s) − max_a' log π_H(a'|s), so the expected decision scores 0 in any
+    state however sure the person is, and another decision scores the log-ratio to it."""
+    slower, idle = _episode(SLOWER), _episode(IDLE)
+    cfg = TeacherConfig(use_belief=False, relative=True)
+    sure, unsure = _actor(IDLE, strength=3.0), _actor(IDLE, strength=0.5)
+    for actor, gap in ((sure, 3.0), (unsure, 0.5)):
+        teacher = dv.ExpectationTeacher(WORLD.params.with_sleet(0.0), actor, WORLD.env)
+        assert float(dv.segment_scores(idle, teacher, cfg)[0]) == pytest.approx(0.0, abs=1e-5)
+        # every live step after the onset is a SLOWER: each scores −gap (logits differ by `gap`)
+        braking = int(jnp.sum(slower.mask[0] * (slower.obs[0, :, 7] > 0.5)))
+        assert float(dv.segment_scores(slower, teacher, cfg)[0]) == pytest.approx(-gap * braking, rel=1e-4)
+    # without `relative`, how sure the person is shows in every step, the expected decision's too
+    plain = [float(dv.segment_scores(idle, dv.ExpectationTeacher(WORLD.params, a, WORLD.env), TeacherConfig(use_belief=False))[0])
+             for a in (sure, unsure)]  # fmt: skip
+    assert plain[0] > plain[1] + 1.0

@@ -98,6 +98,14 @@ def test_score_is_the_sum_of_log_t_and_log_pi_under_the_mask(d1):
     np.testing.assert_allclose(position(seg.obs[0, 0], d1.params), positions[0], rtol=1e-6)
 
 
+def test_relative_scores_need_a_discrete_action_space(d1):
+    """A continuous π_H has no most expected action to score against: one clear error."""
+    teacher = ExpectationTeacher(d1.belief(), linear_actor([1.0, 0.0], -1.0), d1.env)
+    seg = _segment(d1, [np.array([2.5, 3.5]), np.array([2.88, 3.5])], [np.array([0.76, 0.0])])
+    with pytest.raises(ValueError, match="relative expectation scores need a discrete action space"):
+        segment_scores(seg, teacher, TeacherConfig(relative=True))
+
+
 def test_the_person_prefers_what_their_policy_would_do_and_the_knobs_apply(d1):
     teacher = ExpectationTeacher(d1.belief(), linear_actor([1.0, 0.0], -1.0), d1.env)  # expects pushes to the right
     start = np.array([2.5, 3.5])

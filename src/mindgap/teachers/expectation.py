@@ -44,7 +44,7 @@ import jax.numpy as jnp
 from ..data.segments import Segments
 from ..envs.interface import Discrete, Env
 from ..models.actor import actor_dist
-from ..models.categorical import categorical_log_prob
+from ..models.categorical import categorical_log_prob, logits
 from ..models.mlp import Params
 from ..models.squashed import squashed_log_prob
 from .preference import TeacherConfig, discounted_sum, labels_from_scores
@@ -83,17 +83,24 @@ def expected_log_prob(actor: Params, obs: jax.Array, act: jax.Array, discrete: b
 
 
 def step_log_likelihood(
-    teacher: ExpectationTeacher, obs, act, next_obs, floor: float, outcomes: bool = True
+    teacher: ExpectationTeacher, obs, act, next_obs, floor: float, outcomes: bool = True, relative: bool = False
 ) -> jax.Array:
     """log T_H(s'|s,a) + log π_H(a|s) of single steps, each term floored: obs, next_obs [..., d], act [..., a] → [...].
 
     ``outcomes=False`` leaves out log T_H: the person judges the agent's decisions and not how the
-    world responded to them (the rating model of §2.2.1 read as a comparison)."""
+    world responded to them (the rating model of §2.2.1 read as a comparison). ``relative`` scores a
+    decision against the state's most expected one, log π_H(a|s) − max_a' log π_H(a'|s)
+    (:class:`~mindgap.teachers.preference.TeacherConfig`; discrete actions only)."""
 
     discrete = isinstance(teacher.env.action_space, Discrete)
+    if relative and not discrete:
+        raise ValueError("relative expectation scores need a discrete action space (a most expected action)")
 
     def one(o, a, o2):
-        log_pi = jnp.maximum(expected_log_prob(teacher.policy, o, a, discrete), floor)
+        log_pi = expected_log_prob(teacher.policy, o, a, discrete)
+        if relative:
+            log_pi = log_pi - jnp.max(logits(teacher.policy, o), -1)
+        log_pi = jnp.maximum(log_pi, floor)
         if not outcomes:
             return log_pi
         return jnp.maximum(teacher.env.log_prob(o, a, o2, teacher.belief), floor) + log_pi
@@ -112,7 +119,9 @@ def segment_scores(seg: Segments, teacher: ExpectationTeacher, cfg: TeacherConfi
     Jitted on its own (the exact densities take seconds to compile), so that host code,
     and :func:`answer` called outside jit, reuse one compiled program per shape.
     """
-    per_step = step_log_likelihood(teacher, seg.obs, seg.act, seg.next_obs, cfg.log_t_floor, cfg.use_belief)
+    per_step = step_log_likelihood(
+        teacher, seg.obs, seg.act, seg.next_obs, cfg.log_t_floor, cfg.use_belief, cfg.relative
+    )
     return discounted_sum(per_step, seg.mask, cfg.gamma)
 
 

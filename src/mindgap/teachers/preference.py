@@ -49,6 +49,11 @@ class TeacherConfig:
     use_belief: bool = True
     """Include the log T_H term (False: the ordinary B-Pref teacher; for an expectation teacher, one who
     judges the agent's decisions by log π_H alone)."""
+    relative: bool = False
+    """An expectation teacher scores each decision against the most expected one in its state,
+    log π_H(a|s) − max_a' log π_H(a'|s) (0 for the decision they expected, whatever the state), instead
+    of log π_H(a|s), which also says how sure they are of the state's decision: a comparison of segments
+    from different states then favours the states where the person is sure. Discrete actions only."""
 
 
 def segment_scores(seg: Segments, env: Env, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
