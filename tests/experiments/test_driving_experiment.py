@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from mindgap.cli import main
+from mindgap.envs.driving import STUDY_IMPORTANCE, importance_weights
 from mindgap.envs.driving.params import IDLE, LANE_LEFT, SLOWER
 from mindgap.experiments import driving
 from mindgap.models.mlp import init_mlp
@@ -153,6 +154,12 @@ def test_presets_and_the_rerun_command():
     assert registry.preset_of("driving", busy) == "full"
     assert registry.command("driving", busy, "runs/d") == "mindgap reproduce driving --traffic 4 --out runs/d"
     assert driving.world_of(busy).params.n_traffic == 4
+    pytest.importorskip("highway_env")
+    from mindgap.experiments.driving_report import highway_version
+
+    drawn = highway_version(busy, importance_weights(STUDY_IMPORTANCE))  # the figures' road: the same cars
+    assert drawn.observation_space.shape == (driving.world_of(busy).env.observation_space.dim,)
+    drawn.close()
     decisions = dataclasses.replace(full, teacher=dataclasses.replace(full.teacher, use_belief=False))
     assert registry.preset_of("driving", decisions) == "full"
     assert (

@@ -186,6 +186,16 @@ def _claims(by: dict) -> list[dict]:
 # Figs. 34–36 through highway-env
 
 
+def highway_version(cfg, weights):
+    """The highway-env version of the run's road (its sleet and other cars, r_A's ``weights``) that draws
+    the figures; it needs ``highway-env`` (the ``driving`` extra)."""
+    from ..envs.driving.highway import SleetHighwayEnv
+
+    return SleetHighwayEnv(
+        render_mode="rgb_array", sleet=cfg.sleet, traffic=cfg.traffic, weights=np.asarray(weights, np.float32)
+    )
+
+
 def _figures(cfg, out: Path, records: dict, people: dict | None, world_of, load_actors) -> list[str]:
     if people is None:
         return []
@@ -197,7 +207,6 @@ def _figures(cfg, out: Path, records: dict, people: dict | None, world_of, load_
         print("highway-env is not installed: no frames or animations (pip install 'mindgap[driving]')")
         return []
     from ..algorithms.sac_loop import greedy_policy
-    from ..envs.driving.highway import SleetHighwayEnv
 
     world = world_of(cfg, people["engineered_weights"])
     folder = _Folder(out)
@@ -207,9 +216,7 @@ def _figures(cfg, out: Path, records: dict, people: dict | None, world_of, load_
         if rec is None:
             continue
         actor = jax.tree.map(lambda a: a[0], load_actors(folder, f"{WORLD}/{m}", world, cfg, rec["seeds"]))
-        env = SleetHighwayEnv(
-            render_mode="rgb_array", sleet=cfg.sleet, weights=np.asarray(people["engineered_weights"], np.float32)
-        )
+        env = highway_version(cfg, people["engineered_weights"])
         env.record()
         policy = jax.jit(lambda o, actor=actor: greedy_policy(world.env)(actor, o))
         obs, _ = env.reset(seed=cfg.eps.seed, options={"onset": int(world.params.brake_first)})
