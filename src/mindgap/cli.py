@@ -4,7 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--importance A,B,C,D] [--answers-by decisions] [--out DIR]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity preference] [--importance A,B,C,D] [--answers-by decisions] [--out DIR]
 mindgap reproduce nav|priors|sampling|eps|lambda|gym [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
@@ -52,6 +52,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--sleet", type=float, help="driving: the road's sleet level, 0 (dry) to 1 (full sleet)")
     r.add_argument("--traffic", type=int, help="driving: other cars on the road (0 to 4 on its three lanes)")
+    r.add_argument(
+        "--sanity",
+        choices=("expectation", "preference"),
+        help="driving: recruits answer the sanity item by which clip is more expected (default) or preferred",
+    )
     r.add_argument("--importance", metavar="A,B,C,D", help="driving: the participants' mean importance answers (1-5)")
     r.add_argument(
         "--answers-by",
@@ -173,7 +178,7 @@ def _reproduce(args) -> int:
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
-    for flag in ("sleet", "traffic", "importance", "answers_by"):
+    for flag in ("sleet", "traffic", "sanity", "importance", "answers_by"):
         if getattr(args, flag) is not None and args.name != "driving":
             raise ValueError(f"--{flag.replace('_', '-')} belongs to the driving study")
     if args.backend:

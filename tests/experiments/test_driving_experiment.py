@@ -238,3 +238,21 @@ def test_drlhp_must_brake_in_lane_for_its_claim(braked_first, changed, held):
     by["drlhp"] = dict(row, min_gap_mean=20.0, collided_mean=0.0, braked_first_mean=braked_first, changed_mean=changed)
     claim = next(c for c in _claims(by) if c["text"].startswith("driving: DRLHP brakes in lane"))
     assert claim["held"] is held
+
+
+def test_the_preference_sanity_item_keeps_every_attentive_recruit(stand_ins, tmp_path, capsys):
+    """``--sanity preference``: recruits answer which clip they prefer (Σ r_H over the same moments),
+    so the crash's penalty settles it for the attentive, steerers included; the item is still asked."""
+    out = tmp_path / "run"
+    argv = ["reproduce", "driving", "--fast", "--sanity", "preference", "--out", str(out), "--job", "driving/people"]
+    assert main(argv) == 0
+    assert json.loads((out / "config.json").read_text())["sanity"] == "preference"
+    rows = json.loads((out / "jobs" / "driving__people.json").read_text())["participants"]
+    assert rows and all(not r["dropped"] for r in rows if r["attentive"])
+    assert any(not r["attentive"] for r in rows) or len(rows) == 4  # only the inattentive can be dropped
+    with pytest.raises(ValueError, match="sanity must be 'expectation' or 'preference'"):
+        dataclasses.replace(driving.preset("fast"), sanity="vote")
+    from mindgap.experiments import registry
+
+    pref = dataclasses.replace(driving.preset("full"), sanity="preference")
+    assert registry.command("driving", pref, "runs/d") == "mindgap reproduce driving --sanity preference --out runs/d"

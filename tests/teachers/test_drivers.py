@@ -147,3 +147,13 @@ def test_a_relative_participant_scores_each_decision_against_the_state_s_most_ex
     plain = [float(dv.segment_scores(idle, dv.ExpectationTeacher(WORLD.params, a, WORLD.env), TeacherConfig(use_belief=False))[0])
              for a in (sure, unsure)]  # fmt: skip
     assert plain[0] > plain[1] + 1.0
+
+
+def test_reward_sums_add_the_participant_s_reward_over_the_live_steps():
+    seg = _episode(SLOWER)
+    reward = dv.RewardH(jnp.asarray([0.1, 0.2, 0.3, 0.4], jnp.float32), WORLD.params.with_sleet(0.0))
+    per_step = dv.participant_reward(reward, seg.obs[0], seg.act[0], seg.next_obs[0])
+    expected = float(jnp.sum(jnp.where(seg.mask[0] > 0, per_step, 0.0)))
+    assert float(dv.reward_sums(seg, reward)[0]) == pytest.approx(expected, rel=1e-6)
+    cut = Segments(seg.obs, seg.act, seg.next_obs, seg.mask.at[0, 5:].set(0.0))  # five steps shown
+    assert float(dv.reward_sums(cut, reward)[0]) == pytest.approx(float(jnp.sum(per_step[:5])), rel=1e-6)

@@ -64,6 +64,11 @@ class DrivingConfig:
     sleet: float = 1.0
     """The sleet level of the road the agents drive on (0 dry … 1 full sleet)."""
     traffic: int = 0
+    sanity: str = "expectation"
+    """How a recruit answers the training phase's sanity item: ``expectation`` (which clip is more
+    expected, per step, as they answer queries) or ``preference`` (which clip they prefer, Σ r_H over
+    the same moments, the collision's clip and braking in time both cut to the crash: the study's
+    wording, "a collision, which should not be preferred under any situation")."""
     """Other cars on the road besides the front car (0 … 4; :func:`~mindgap.envs.driving.make_world`)."""
     importance: tuple[float, ...] = STUDY_IMPORTANCE
     """The population's mean importance answers (Fig. 32's averages)."""
@@ -90,6 +95,8 @@ class DrivingConfig:
 
     def __post_init__(self):
         dv.check_sleet_level(self.sleet)
+        if self.sanity not in ("expectation", "preference"):
+            raise ValueError(f"sanity must be 'expectation' or 'preference', got {self.sanity!r}")
         if not 0 <= self.traffic <= 4:
             raise ValueError(f"traffic must be in 0 … 4 (two cars in each of the other two lanes), got {self.traffic}")
         importance_weights(self.importance)  # one line for a rating outside [1, 5]
@@ -276,12 +283,19 @@ def people_record(folder: RunFolder, cfg: DrivingConfig) -> dict:
     probe = world_of(cfg)
     (c_obs, c_act, c_alive), (s_obs, s_act, s_alive) = sanity_segments(probe, probe.horizon)
     items = [_segment(c_obs, c_act, c_alive, probe.horizon), _segment(s_obs, s_act, s_alive, probe.horizon)]
+    crash = int(np.asarray(c_alive).sum())  # the preference item shows both up to the crash
+    same_moments = [_segment(c_obs, c_act, c_alive, crash), _segment(s_obs, s_act, s_alive, crash)]
 
     def judge(key, batch, actors):
         whys = []
         for i, d in enumerate(batch):
-            teacher = dv.ExpectationTeacher(belief_params(probe, d), jax.tree.map(lambda a: a[i], actors), probe.env)
-            sc = [float(dv.per_step_scores(s, teacher, cfg.teacher)[0]) for s in items]
+            if cfg.sanity == "preference":
+                reward = dv.RewardH(jnp.asarray(d.weights), probe.params.with_sleet(0.0))
+                sc = [float(dv.reward_sums(s, reward)[0]) for s in same_moments]
+            else:
+                actor = jax.tree.map(lambda a: a[i], actors)
+                teacher = dv.ExpectationTeacher(belief_params(probe, d), actor, probe.env)
+                sc = [float(dv.per_step_scores(s, teacher, cfg.teacher)[0]) for s in items]
             fails = dv.sanity_fails(jax.random.fold_in(key, i), sc[0], sc[1], d.attentive, cfg.teacher)
             whys.append("failed the sanity check (the collision more expected)" if fails else "")
         return whys

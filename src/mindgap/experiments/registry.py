@@ -34,7 +34,7 @@ NAMES = tuple(MODULES)
 _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
-    "driving": ("seeds", "sleet", "traffic", "importance"),
+    "driving": ("seeds", "sleet", "traffic", "sanity", "importance"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -133,6 +133,8 @@ def command(name: str, config, out: str | Path) -> str:
         words += ["--sleet", f"{cfg['sleet']:g}"]
     if name == "driving" and cfg.get("traffic", 0) != ref.get("traffic"):
         words += ["--traffic", str(cfg.get("traffic", 0))]
+    if name == "driving" and cfg.get("sanity", "expectation") != ref.get("sanity"):
+        words += ["--sanity", str(cfg.get("sanity", "expectation"))]
     if name == "driving" and cfg.get("importance") != ref.get("importance"):
         words += ["--importance", ",".join(f"{v:g}" for v in cfg["importance"])]
     if name == "driving" and not (cfg.get("teacher") or {}).get("use_belief", True):

@@ -251,6 +251,14 @@ def per_step_scores(seg: Segments, teacher: ExpectationTeacher, cfg: TeacherConf
     return segment_scores(seg, teacher, cfg) / jnp.maximum(seg.mask.sum(-1), 1)
 
 
+def reward_sums(seg: Segments, reward: RewardH) -> jax.Array:
+    """How much a participant likes each segment: Σ_t r_H over the steps that happened, [K]."""
+    k, n = seg.mask.shape
+    flat = lambda x: x.reshape(k * n, -1)  # noqa: E731
+    r = participant_reward(reward, flat(seg.obs), flat(seg.act), flat(seg.next_obs)).reshape(k, n)
+    return jnp.sum(jnp.where(seg.mask > 0, r, 0.0), -1)
+
+
 def sanity_fails(key, collision_score, safe_score, attentive: bool, cfg: TeacherConfig) -> bool:
     """The study's sanity item: the participant finds the collision more expected than braking in time
     (Bradley–Terry on the two episodes' :func:`per_step_scores`)."""
