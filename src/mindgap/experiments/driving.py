@@ -64,12 +64,12 @@ class DrivingConfig:
     sleet: float = 1.0
     """The sleet level of the road the agents drive on (0 dry … 1 full sleet)."""
     traffic: int = 0
+    """Other cars on the road besides the front car (0 … 4; :func:`~mindgap.envs.driving.make_world`)."""
     sanity: str = "expectation"
     """How a recruit answers the training phase's sanity item: ``expectation`` (which clip is more
     expected, per step, as they answer queries) or ``preference`` (which clip they prefer, Σ r_H over
     the same moments, the collision's clip and braking in time both cut to the crash: the study's
     wording, "a collision, which should not be preferred under any situation")."""
-    """Other cars on the road besides the front car (0 … 4; :func:`~mindgap.envs.driving.make_world`)."""
     importance: tuple[float, ...] = STUDY_IMPORTANCE
     """The population's mean importance answers (Fig. 32's averages)."""
     seeds: int = 5
@@ -297,7 +297,8 @@ def people_record(folder: RunFolder, cfg: DrivingConfig) -> dict:
                 teacher = dv.ExpectationTeacher(belief_params(probe, d), actor, probe.env)
                 sc = [float(dv.per_step_scores(s, teacher, cfg.teacher)[0]) for s in items]
             fails = dv.sanity_fails(jax.random.fold_in(key, i), sc[0], sc[1], d.attentive, cfg.teacher)
-            whys.append("failed the sanity check (the collision more expected)" if fails else "")
+            chose = "preferred" if cfg.sanity == "preference" else "more expected"
+            whys.append(f"failed the sanity check (the collision {chose})" if fails else "")
         return whys
 
     key = rng.key(60_000 + cfg.eps.seed)

@@ -260,8 +260,8 @@ def reward_sums(seg: Segments, reward: RewardH) -> jax.Array:
 
 
 def sanity_fails(key, collision_score, safe_score, attentive: bool, cfg: TeacherConfig) -> bool:
-    """The study's sanity item: the participant finds the collision more expected than braking in time
-    (Bradley–Terry on the two episodes' :func:`per_step_scores`)."""
+    """The study's sanity item: the participant picks the collision over braking in time (Bradley–Terry on
+    the two clips' scores: :func:`per_step_scores`, or :func:`reward_sums` for a preference item)."""
     return prefers_first(key, collision_score, safe_score, attentive, cfg)
 
 
