@@ -52,8 +52,6 @@ from mindgap.models.categorical import sample_categorical
 from mindgap.teachers.drivers import RewardH, participant_reward, per_step_scores
 from mindgap.teachers.expectation import ExpectationTeacher
 
-START_LANE = 1
-"""The start lane of the scenario's default road (``make_params``)."""
 PASSED = 15.0
 """The overtaking script returns to its lane once the front car is this far behind [m]."""
 IDLE, LEFT, SLOWER = ACTIONS.index("IDLE"), ACTIONS.index("LANE_LEFT"), ACTIONS.index("SLOWER")
@@ -67,11 +65,11 @@ POLICIES = (
 )
 
 
-def act(policy: int, obs: jax.Array, t: jax.Array, seen: jax.Array) -> jax.Array:
+def act(policy: int, obs: jax.Array, t: jax.Array, seen: jax.Array, start_lane: jax.Array) -> jax.Array:
     """The scripted action of ``policy`` (an index into :data:`POLICIES`) at step ``t``, after ``seen``
-    decisions with the front car braking."""
+    decisions with the front car braking, on a road whose cars start in ``start_lane``."""
     front_brakes = obs[7] > 0.5  # the observation's "front car braking" flag
-    home = jnp.round(obs[3]) == START_LANE  # the target lane is the start lane
+    home = jnp.round(obs[3]) == start_lane  # the target lane is the start lane
     front_dx = obs[EGO_OBS] * DIST_SCALE  # the front car's distance ahead (centre to centre)
     overtake = jnp.where(
         home, jnp.where(front_brakes & (front_dx > 0), LEFT, IDLE), jnp.where(front_dx > -PASSED, IDLE, RIGHT)
@@ -101,7 +99,7 @@ def returns(world, params, policy: int, episodes: int, key, keep: bool = False):
         def body(carry, kt):
             state, done, t, seen, ra, rh = carry
             obs = env.observe(state, params)
-            a = act(policy, obs, t, seen)
+            a = act(policy, obs, t, seen, params.start_lane)
             seen = seen + (obs[7] > 0.5)
             out = env.step(kt, state, a, params)
             nxt = env.observe(out.state, params)
