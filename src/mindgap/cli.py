@@ -4,7 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity preference] [--importance A,B,C,D] [--answers-by decisions] [--out DIR]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity expectation] [--importance A,B,C,D] [--answers-by decisions] [--out DIR]
 mindgap reproduce nav|priors|sampling|eps|lambda|gym [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
@@ -55,7 +55,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--sanity",
         choices=("expectation", "preference"),
-        help="driving: recruits answer the sanity item by which clip is more expected (default) or preferred",
+        help="driving: recruits answer the sanity item by which clip they prefer (default) or find more expected",
     )
     r.add_argument("--importance", metavar="A,B,C,D", help="driving: the participants' mean importance answers (1-5)")
     r.add_argument(

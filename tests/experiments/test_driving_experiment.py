@@ -241,10 +241,11 @@ def test_drlhp_must_brake_in_lane_for_its_claim(braked_first, changed, held):
 
 
 def test_the_preference_sanity_item_keeps_every_attentive_recruit(stand_ins, tmp_path, capsys):
-    """``--sanity preference``: recruits answer which clip they prefer (Σ r_H over the same moments),
-    so the crash's penalty settles it for the attentive, steerers included; the item is still asked."""
+    """By default recruits answer the sanity item by which clip they prefer (Σ r_H over the same
+    moments), so the crash's penalty settles it for the attentive, steerers included; the item is
+    still asked, and ``--sanity expectation`` (the earlier runs' item) is an option."""
     out = tmp_path / "run"
-    argv = ["reproduce", "driving", "--fast", "--sanity", "preference", "--out", str(out), "--job", "driving/people"]
+    argv = ["reproduce", "driving", "--fast", "--out", str(out), "--job", "driving/people"]
     assert main(argv) == 0
     assert json.loads((out / "config.json").read_text())["sanity"] == "preference"
     rows = json.loads((out / "jobs" / "driving__people.json").read_text())["participants"]
@@ -254,5 +255,8 @@ def test_the_preference_sanity_item_keeps_every_attentive_recruit(stand_ins, tmp
         dataclasses.replace(driving.preset("fast"), sanity="vote")
     from mindgap.experiments import registry
 
-    pref = dataclasses.replace(driving.preset("full"), sanity="preference")
-    assert registry.command("driving", pref, "runs/d") == "mindgap reproduce driving --sanity preference --out runs/d"
+    old = dataclasses.replace(driving.preset("full"), sanity="expectation")
+    assert registry.command("driving", old, "runs/d") == "mindgap reproduce driving --sanity expectation --out runs/d"
+    # a run folder from before the option existed holds no ``sanity``: it was the expectation item
+    plain = {k: v for k, v in registry._plain(driving.preset("full")).items() if k != "sanity"}
+    assert "--sanity expectation" in registry.command("driving", plain, "runs/d")

@@ -65,11 +65,12 @@ class DrivingConfig:
     """The sleet level of the road the agents drive on (0 dry … 1 full sleet)."""
     traffic: int = 0
     """Other cars on the road besides the front car (0 … 4; :func:`~mindgap.envs.driving.make_world`)."""
-    sanity: str = "expectation"
-    """How a recruit answers the training phase's sanity item: ``expectation`` (which clip is more
-    expected, per step, as they answer queries) or ``preference`` (which clip they prefer, Σ r_H over
-    the same moments, the collision's clip and braking in time both cut to the crash: the study's
-    wording, "a collision, which should not be preferred under any situation")."""
+    sanity: str = "preference"
+    """How a recruit answers the training phase's sanity item: ``preference`` (which clip they prefer,
+    Σ r_H over the same moments, the collision's clip and braking in time both cut to the crash: the
+    study's wording, "a collision, which should not be preferred under any situation") or
+    ``expectation`` (which clip is more expected, per step, as they answer queries; it drops
+    attentive recruits who expect steering, docs/experiments/driving.md)."""
     importance: tuple[float, ...] = STUDY_IMPORTANCE
     """The population's mean importance answers (Fig. 32's averages)."""
     seeds: int = 5

@@ -1,6 +1,6 @@
 """The driving study on the command line: ``mindgap reproduce driving``.
 
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity preference] [--importance A,B,C,D] [--answers-by decisions] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity expectation] [--importance A,B,C,D] [--answers-by decisions] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, 4 + 4 participants, tiny networks: a dry
 run and the tests' preset, not results); without it the full one (5 seeds, 30 000 steps,
