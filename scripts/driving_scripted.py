@@ -19,9 +19,10 @@ Five policies, each run for ``--episodes`` episodes on a dry road and at ``--sle
 Both rewards use the study's average importances (Fig. 32). Prints the mean return (± its
 standard error) of each policy under each reward. With ``--run DIR`` (a ``mindgap reproduce
 driving`` run folder) it prints instead how expected each policy's episodes look to that run's
-valid participants, scored as they answer queries — Σ_t [log T_H + log π_H] per step, or log π_H
-alone for a run made with ``--answers-by decisions`` (:func:`mindgap.teachers.drivers.per_step_scores`) —
-averaged over the attentive participants and the episodes. With ``--run DIR --expected`` it prints
+valid participants, per step, both as the identifiable protocol scores them — Σ_t [log T_H +
+log π_H] — and by log π_H alone, as ``--answers-by decisions`` does
+(:func:`mindgap.teachers.drivers.per_step_scores`), averaged over the attentive participants and
+the episodes, and how many of them find braking in lane the most expected of the five. With ``--run DIR --expected`` it prints
 what each attentive participant expects the car to do: their π_H's own episodes (actions drawn
 from π_H) in the world as they believe it — how often the expected car changes lane before the
 front car brakes, its first decision once it brakes, and how expected those episodes look per
@@ -189,17 +190,33 @@ def expected_episodes(run: Path, world, episodes: int, key) -> None:
 
 
 def expectedness(run: Path, world, episodes: int, key) -> None:
-    """How expected each scripted policy's episodes look per step to the valid, attentive participants of ``run``."""
+    """How expected each scripted policy's episodes look per step to the valid, attentive participants of
+    ``run``, under both ways of answering: Σ [log T_H + log π_H] (the identifiable protocol) and log π_H
+    alone (``--answers-by decisions``). Also counts, per road and way, the participants to whom braking in
+    lane is the most expected of the five policies."""
     pairs, teacher = participants(run, world)
     persons = [ExpectationTeacher(dr.belief_params(world, d), actor, world.env) for d, actor in pairs]
-    terms = "log T_H + log π_H" if teacher.use_belief else "log π_H"
-    print(f"per-step expectedness (Σ {terms} per step, as the run's participants answer) of {episodes} episodes, "
-          f"{len(persons)} attentive participants of {run}")  # fmt: skip
+    ways = {
+        "log T_H + log π_H": dataclasses.replace(teacher, use_belief=True),
+        "log π_H": dataclasses.replace(teacher, use_belief=False),
+    }
+    print(f"per-step expectedness of {episodes} episodes, mean over the {len(persons)} attentive participants of "
+          f"{run} (it answers by {'Σ [log T_H + log π_H]' if teacher.use_belief else 'log π_H'})")  # fmt: skip
+    print(f"{'road':<8} {'policy':<28} " + " ".join(f"{w:>18}" for w in ways))
     for road, params in (("dry", world.beliefs["dry"]), ("sleet", world.params)):
+        table = {w: [] for w in ways}  # [policy][participant]
         for i, name in enumerate(POLICIES):
             *_, seg = returns(world, params, i, episodes, key, keep=True)
-            scores = [np.asarray(per_step_scores(seg, person, teacher)) for person in persons]
-            print(f"{road:<8} {name:<28} {np.mean(scores):>8.2f}")
+            for w, cfg in ways.items():
+                table[w].append([float(np.mean(per_step_scores(seg, person, cfg))) for person in persons])
+            print(f"{road:<8} {name:<28} " + " ".join(f"{np.mean(table[w][i]):>18.2f}" for w in ways))
+        best = {
+            w: int(np.sum(np.argmax(np.asarray(t), 0) == POLICIES.index("brake in lane"))) for w, t in table.items()
+        }
+        print(
+            f"{road:<8} {'braking in lane most expected':<28} "
+            + " ".join(f"{best[w]:>15} of {len(persons)}" for w in ways)
+        )
 
 
 def main() -> None:
