@@ -61,6 +61,7 @@ def belief_noise_map(
     return jnp.where(is_wall(world_params, rows, cols), jnp.nan, cells)
 
 
+@jax.jit  # called from host code: op by op, each call compiled the dynamics' branches again
 def table_noise_map(world_params) -> jax.Array:
     """The noise scale σ(s) a dynamics table gives each cell centre (terrain noise plus the pit term).
 
@@ -82,6 +83,7 @@ def belief_stay_map(params: Params, norm: Norm, world_params, actions: jax.Array
     return jnp.where(is_wall(world_params, rows, cols), jnp.nan, stay)
 
 
+@jax.jit  # called from host code: op by op, each call compiled the dynamics' branches again
 def table_stay_map(world_params, actions: jax.Array | None = None) -> jax.Array:
     """The exact probability of not moving (stuck, or bumped against a wall) a dynamics table gives each
     cell centre, averaged over ``actions`` as :func:`belief_stay_map`: [H, W], NaN on walls."""

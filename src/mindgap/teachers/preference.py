@@ -56,10 +56,13 @@ class TeacherConfig:
     from different states then favours the states where the person is sure. Discrete actions only."""
 
 
+@partial(jax.jit, static_argnames=("env", "cfg"))
 def segment_scores(seg: Segments, env: Env, world_params, belief_params, cfg: TeacherConfig) -> jax.Array:
     """The person's score of each segment. seg [K, L, ·] → [K]; absorbing steps score 0.
 
     r_H is ``env.reward`` under ``world_params``; log T_H is ``env.log_prob`` under ``belief_params``.
+    Jitted: called outside a jitted program (a world check, a host teacher), op by op it compiled
+    each of the dynamics' branches again on every call.
     """
 
     def step_score(o, a, o2):
