@@ -46,6 +46,7 @@ from ..algorithms.sac import SACConfig
 from ..algorithms.sac_loop import agent_init, greedy_policy, loop_init, rollouts, run_chunk
 from ..checkpoint import load_pytree, save_pytree
 from ..data.rollouts_file import rollout_record, write_rollouts
+from ..data.segments import Segments
 from ..envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
 from ..envs.driving.params import LANE_WIDTH, LENGTH, SLOWER, WIDTH
 from ..envs.driving.world import DIST_SCALE, EGO_OBS
@@ -274,8 +275,6 @@ def sanity_segments(world, length: int):
 
 def _segment(obs, act, alive, length: int):
     """The first ``length`` steps of an episode as one query segment ``[1, L, ·]``."""
-    from ..data.segments import Segments
-
     return Segments(obs[None, :length], act[None, :length], obs[None, 1 : length + 1], alive[None, :length])
 
 
@@ -376,8 +375,7 @@ def _greedy_return_h(key, actor, belief, reward: dv.RewardH, episodes: int, worl
     """Mean r_H of ``episodes`` greedy episodes of ``actor`` in the world ``belief``."""
     env = world.env
     obs, _, alive = rollouts(key, env, belief, greedy_policy(env), actor, episodes, world.horizon)
-    r = jax.vmap(lambda o: dv.participant_reward(reward, o[:-1], None, o[1:]))(obs)
-    return jnp.sum(r * alive, axis=1).mean()
+    return dv.reward_sums(Segments(None, None, obs[:, 1:], alive), reward).mean()
 
 
 def load_people(folder: RunFolder, world, people: dict, cfg: DrivingConfig):

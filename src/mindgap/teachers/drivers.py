@@ -252,10 +252,11 @@ def per_step_scores(seg: Segments, teacher: ExpectationTeacher, cfg: TeacherConf
 
 
 def reward_sums(seg: Segments, reward: RewardH) -> jax.Array:
-    """How much a participant likes each segment: Σ_t r_H over the steps that happened, [K]."""
+    """How much a participant likes each segment: Σ_t r_H over the steps that happened, [K].
+
+    r_H reads the states steps reach only, so ``seg.obs`` and ``seg.act`` may be None."""
     k, n = seg.mask.shape
-    flat = lambda x: x.reshape(k * n, -1)  # noqa: E731
-    r = participant_reward(reward, flat(seg.obs), flat(seg.act), flat(seg.next_obs)).reshape(k, n)
+    r = participant_reward(reward, None, None, seg.next_obs.reshape(k * n, -1)).reshape(k, n)
     return jnp.sum(jnp.where(seg.mask > 0, r, 0.0), -1)
 
 
