@@ -119,7 +119,8 @@ def test_stay_head_scores_a_stay_by_its_probability(key):
     assert 1e-4 < p < 1 - 1e-4
     np.testing.assert_allclose(float(preference_prob(w, phi, norm, seg_a, seg_b, cfg)[0]), p, rtol=1e-4)
     state = prefbias_init(key, 2, 2, dataclasses.replace(cfg, belief_prior="random"), DynamicsModel(phi, norm))
-    assert state.belief.mean[-1][1].shape == (5,)  # a random prior of the same architecture
+    assert state.belief.mean.net[-1][1].shape == (5,)  # a random prior of the same architecture
+    np.testing.assert_array_equal(state.belief.mean.stay, 0.0)  # and a local stay disturbance of zeros
 
 
 def test_units_state_a_move_s_density_in_the_world_s_units(key):
@@ -413,7 +414,8 @@ def test_fit_learns_which_terminal_state_is_worse(key):
     data = PrefData(seg_a, seg_b, label, jnp.asarray(pairs, jnp.int32))
     dcfg = DynamicsConfig(hidden=(8,))
     cfg = PrefBiasConfig(
-        reward_hidden=(8,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3, absorbing=True, stay_head=False
+        reward_hidden=(8,), dynamics=dcfg, updates=150, batch_size=32, lr=3e-3, absorbing=True, stay_head=False,
+        belief_prior_std=0.1,  # f_ψ here is a random network, far from the segments' moves: f_φ must be free to fit them
     )
     norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.full(2, 0.05))
     psi = init_mlp(jax.random.fold_in(key, 9), dynamics_sizes(2, 2, dcfg.hidden))
@@ -423,3 +425,87 @@ def test_fit_learns_which_terminal_state_is_worse(key):
     ends = jnp.array([[0.7, 0.0], [-0.7, 0.0]])
     r_goal, r_pit = np.asarray(absorbing_value(state.reward.mean, ends))
     assert r_goal > r_pit + 0.5, (r_goal, r_pit)
+
+
+# ---- the belief's prior scales, the local stay disturbance, held-out answers ------------------
+
+
+def test_belief_prior_scales_are_narrow_on_the_move_and_wide_on_the_stay(key):
+    from jax.flatten_util import ravel_pytree
+
+    from mindgap.algorithms.prefbias_inference import belief_prior_scales
+    from mindgap.models.prefbias_nets import STAY_GAIN, BeliefWeights
+
+    dcfg = DynamicsConfig(hidden=(6,))
+    net = init_mlp(key, dynamics_sizes(2, 2, dcfg.hidden, stay=True))  # outputs: mean 2, scale 2, stay 1
+    column = PrefBiasConfig(dynamics=dcfg, belief_prior_std=0.01, stay_prior_std=2.0, stay_local=False)
+    scales = jax.tree.map(np.asarray, ravel_pytree(net)[1](belief_prior_scales(net, 2, column)))
+    (w, b) = scales[-1]
+    np.testing.assert_allclose(w[:, -1], 2.0)
+    np.testing.assert_allclose(b[-1], 2.0)
+    np.testing.assert_allclose(w[:, :-1], 0.01)
+    np.testing.assert_allclose(scales[0][0], 0.01)
+    one = dataclasses.replace(column, stay_prior_std=None)
+    np.testing.assert_allclose(belief_prior_scales(net, 2, one), 0.01)
+    local = BeliefWeights(net, jnp.zeros(7))
+    flat = belief_prior_scales(local, 2, dataclasses.replace(column, stay_local=True))
+    np.testing.assert_allclose(flat[-7:], 2.0 / STAY_GAIN)  # the disturbance's weights, last; per unit of height
+    np.testing.assert_allclose(flat[:-7], 0.01)  # the whole MLP, its stay column included
+    rand = dataclasses.replace(column, belief_prior="random", random_prior_std=0.7)
+    np.testing.assert_allclose(belief_prior_scales(net, 2, rand)[:-1], 0.7)
+
+
+def test_a_local_stay_disturbance_moves_the_stay_probability_near_its_bump_only(key):
+    from mindgap.models.prefbias_nets import STAY_GAIN, BeliefWeights, belief_log_prob, belief_stay_prob, stay_features
+    from mindgap.models.reward_ensemble import rbf_count
+
+    net = init_mlp(key, dynamics_sizes(2, 2, (6,), stay=True))
+    norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.full(2, 0.1))
+    m = rbf_count(2)
+    obs = jnp.array([[-1.0, -1.0], [1.0, 1.0]])  # the first and the last bump's centres
+    act, nxt = jnp.zeros((2, 2)), obs + 0.05
+    zero = BeliefWeights(net, jnp.zeros(m))
+    np.testing.assert_array_equal(belief_log_prob(zero, norm, obs, act, nxt, 0.01), belief_log_prob(net, norm, obs, act, nxt, 0.01))
+    np.testing.assert_allclose(stay_features(obs, m)[0, 0], STAY_GAIN)
+    lifted = BeliefWeights(net, jnp.zeros(m).at[0].set(3.0 / STAY_GAIN))
+    logit = lambda p: np.log(p) - np.log1p(-p)  # noqa: E731
+    before, after = (np.asarray(belief_stay_prob(p, norm, obs, act)) for p in (zero, lifted))
+    np.testing.assert_allclose(logit(after[0]) - logit(before[0]), 3.0, rtol=1e-4)
+    np.testing.assert_allclose(after[1], before[1])
+
+
+def test_held_out_answers_are_never_trained_on():
+    from mindgap.algorithms.prefbias_inference import _train_index, held_out
+
+    held = np.asarray(held_out(jnp.asarray(20), 24, 8))
+    assert np.flatnonzero(held).tolist() == [7, 15]
+    n_train = 20 - 2
+    trained = np.asarray(_train_index(jnp.arange(n_train), 8))
+    assert sorted(trained.tolist()) == [i for i in range(20) if i not in (7, 15)]
+    assert not np.asarray(held_out(jnp.asarray(20), 24, 0)).any()
+    with pytest.raises(ValueError, match="holdout_every"):
+        PrefBiasConfig(holdout_every=1).check()
+    with pytest.raises(ValueError, match="multiple of check_every"):
+        PrefBiasConfig(updates=30, check_every=25).check()
+
+
+def test_fit_keeps_the_posterior_that_predicts_the_held_out_answers_best(key):
+    data, norm = _toy_data(key, pairs=64)
+    dcfg = DynamicsConfig(hidden=(8,))
+    cfg = PrefBiasConfig(reward_hidden=(16,), dynamics=dcfg, updates=100, check_every=20, holdout_every=4,
+                         batch_size=32, lr=3e-3, **PLAIN)  # fmt: skip
+    psi = init_mlp(jax.random.fold_in(key, 9), dynamics_sizes(2, 2, dcfg.hidden))
+    dyn = DynamicsModel(psi[:-1] + ((psi[-1][0] * 0, psi[-1][1] * 0),), norm)
+    state = prefbias_init(jax.random.fold_in(key, 1), 2, 2, cfg, dyn)
+    held = np.arange(64) % 4 == 3
+
+    def held_nll(s):
+        p = np.clip(np.asarray(preference_prob(s.reward.mean, s.belief.mean, norm, data.seg_a, data.seg_b, cfg)), 1e-6, 1 - 1e-6)
+        y = np.asarray(data.label)
+        return float(np.mean(-(y * np.log(p) + (1 - y) * np.log1p(-p))[held]))
+
+    new, info = jax.jit(fit, static_argnames="cfg")(state, data, jax.random.fold_in(key, 2), cfg=cfg)
+    np.testing.assert_allclose(float(info.held_nll), held_nll(new), rtol=1e-4)
+    assert held_nll(new) < held_nll(state) - 0.05  # it learned, judged on answers it never trained on
+    _, plain = jax.jit(fit, static_argnames="cfg")(state, data, key, cfg=dataclasses.replace(cfg, holdout_every=0))
+    assert np.isnan(float(plain.held_nll))

@@ -15,7 +15,7 @@ from mindgap.algorithms.prefbias import prefbias_config, train
 from mindgap.cli import main
 from mindgap.data.replay import terminal_bonus
 from mindgap.envs.terrain import load_world
-from mindgap.models.prefbias_nets import absorbing_value, posterior_reward
+from mindgap.models.prefbias_nets import BeliefWeights, absorbing_value, belief_net, posterior_reward
 from mindgap.planning.terrain import rollouts
 from mindgap.planning.terrain_maps import noise_maps
 from mindgap.teachers.preference import PreferenceTeacher
@@ -150,9 +150,14 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, t
     assert not np.allclose(after[:, :size], before[:, :size])
     # the first round fitted f_ψ on the buffer and centred p(φ) on it; q(φ) started there
     psi = carry.model.dynamics.params[0][0]
-    np.testing.assert_array_equal(np.asarray(carry.model.posterior.belief_prior[0][0]), np.asarray(psi))
+    prior, mean = carry.model.posterior.belief_prior, carry.model.posterior.belief.mean
+    np.testing.assert_array_equal(np.asarray(belief_net(prior)[0][0]), np.asarray(psi))
     outputs = carry.model.dynamics.params[-1][1].shape[-1]  # mean and scale per coordinate, and the stay logit
-    assert outputs == 4 + opts.get("stay_head", False) == carry.model.posterior.belief.mean[-1][1].shape[-1]
+    assert outputs == 4 + opts.get("stay_head", False) == belief_net(mean)[-1][1].shape[-1]
+    # with the stay head, a local disturbance of the stay logit whose prior is centred on 0
+    assert isinstance(mean, BeliefWeights) == opts.get("stay_head", False)
+    if opts.get("stay_head", False):
+        np.testing.assert_array_equal(np.asarray(prior.stay), 0.0)
     np.testing.assert_allclose(
         np.asarray(carry.model.posterior.norm.out_std), np.asarray(carry.model.dynamics.norm.out_std)
     )

@@ -257,7 +257,7 @@ def test_priors_fast_reports_belief_and_reward_errors(stand_ins, tmp_path, capsy
     summary = json.loads((out / "summary.json").read_text())
     claims = [c["text"] for c in summary["claims"]]
     assert claims == [
-        "nav1: the dynamics prior gives the lower belief error (stay)",
+        "nav1: the dynamics prior gives the lower belief error (stay) (by at least 2 standard errors)",
         "nav1: the dynamics prior gives the lower reward error",
         "nav1: the dynamics prior's return is at least the random prior's",
     ]
@@ -309,7 +309,11 @@ def test_nav_asks_an_unbiased_person_too_and_states_the_issue_s_claims():
 
     cfg = prefbias_nav.preset("full")
     jobs = {j.key: j for j in prefbias_nav.jobs(cfg)}
-    assert {pc.teacher_of(jobs[k]) for k in ("nav1/prefbias-q800-unbiased", "nav1/pebble-q800-unbiased")} == {"true"}
+    # the unbiased person scores by r_H + log T (the engine's "unbiased" teacher), not by r_H alone
+    assert {pc.teacher_of(jobs[k]) for k in ("nav1/prefbias-q800-unbiased", "nav1/pebble-q800-unbiased")} == {
+        "unbiased"
+    }
+    assert pc.teacher_of(jobs["nav1/pebble-q800"]._replace(tags={"person": "reward-only"})) == "true"
     assert {pc.teacher_of(jobs[k]) for k in ("nav1/prefbias-q800", "nav1/pebble-q800")} == {"biased"}
     assert pc.teacher_of(jobs["nav1/sac"]) == "true"
     assert not any("unbiased" in j.key for j in prefbias_nav.jobs(prefbias_nav.preset("fast")))
@@ -431,3 +435,30 @@ def test_one_job_runs_again_from_the_command_its_record_keeps(stand_ins, tmp_pat
     assert main(["reproduce", "nav", "--fast", *V1, "--job", "nav1-v1/nope", "--out", str(again)]) == 2
     assert "has no job 'nav1-v1/nope'" in capsys.readouterr().err
     assert main(["reproduce", "nav", "--fast", *V1, "--job", key, "--assemble", "--out", str(again)]) == 2
+
+
+def test_the_oracle_is_its_median_seed_and_goal_reaching_is_counted_apart():
+    oracle = {"final": [-40.0, -38.0, -209.0]}  # each seed's mean greedy return; one seed failed
+    assert pc.oracle_return(oracle) == -40.0
+    rec = {"method": "prefbias", "world": "nav2", "tags": {"queries": 800}, "label": "x",
+           "final": [-40.0, -100.0], "routes": [{"goal": 1.0, "better": True}, {"goal": 0.2, "better": False}]}  # fmt: skip
+    ref = {"random_return": -140.0}
+    row = pc.result_row(rec, ref, oracle)
+    np.testing.assert_allclose([row["normalised_mean"]], [np.mean([1.0, 0.4])])
+    assert row["goal_seeds"] == 0.5 and row["oracle_seeds_above_random"] == 2
+
+
+def test_the_engine_s_unbiased_person_believes_the_truth():
+    from mindgap.algorithms.engine import preference_teacher
+    from mindgap.algorithms.prefbias import prefbias_config
+    from mindgap.envs.terrain import load_world
+
+    nav1, cfg = load_world("nav1"), prefbias_config("fast")
+    unbiased, meta = preference_teacher(nav1, cfg, 1, "unbiased", None, who="test")
+    assert unbiased.belief is nav1.params and unbiased.cfg.use_belief and meta["teacher"] == "unbiased"
+    reward_only, _ = preference_teacher(nav1, cfg, 1, "true", None, who="test")
+    assert reward_only.belief is None and not reward_only.cfg.use_belief
+    biased, _ = preference_teacher(nav1, cfg, 1, "biased", None, who="test")
+    np.testing.assert_array_equal(biased.belief.dynamics.stuck, nav1.belief().dynamics.stuck)
+    with pytest.raises(ValueError, match="biased, unbiased, true"):
+        preference_teacher(nav1, cfg, 1, "sceptical", None, who="test")

@@ -20,6 +20,7 @@ from mindgap.planning.belief_fit import (
     Profile,
     Queries,
     fit_world,
+    imprecise_moves,
     log_likelihood,
     verdict,
 )
@@ -150,3 +151,20 @@ def test_the_verdict_reads_the_margins():
     assert verdict(fit(8.0, 1.0, span=1.0), "ice.stuck") == "not identified"  # a flat profile
     assert verdict(fit(8.0, 1.0, stderr=np.inf), "ice.stuck") == "not identified"
     assert verdict(fit(8.0, 1.0, stderr=0.6), "ice.stuck") == "not identified"  # not 1 SE between 0.1 and 0.7
+
+
+def test_an_imprecise_learner_sees_every_move_shifted_by_a_smooth_field_of_the_given_rms():
+    k_pos, k_field = jax.random.split(jax.random.key(0))
+    pos = jax.random.uniform(k_pos, (2000, 2, 3, 2), maxval=20.0)
+    stay = jnp.arange(3) == 1  # the middle step of every segment does not move
+    nxt = jnp.where(stay[None, None, :, None], pos, pos + 0.5)
+    q = Queries(pos, jnp.zeros_like(pos), nxt, jnp.ones(pos.shape[:-1], bool), jnp.ones(2000))
+    seen = imprecise_moves(q, 0.06, k_field)
+    shift = np.asarray(q.nxt - seen.nxt)
+    np.testing.assert_array_equal(shift[:, :, 1], 0.0)  # stays stay stays
+    moved = shift[:, :, [0, 2]].reshape(-1, 2)
+    assert abs(np.sqrt((moved**2).sum(-1).mean()) - 0.06) < 0.006
+    # smooth: two positions a tenth of a cell apart are shifted almost alike
+    near = imprecise_moves(q._replace(pos=q.pos + 0.1, nxt=q.nxt + 0.1), 0.06, k_field)
+    assert np.abs(np.asarray(near.nxt - 0.1 - seen.nxt)[:, :, 0]).max() < 0.06 * 0.5
+    assert imprecise_moves(q, 0.0, k_field) is q

@@ -120,3 +120,34 @@ def test_the_command_fits_the_belief_by_maximum_likelihood(tmp_path, capsys):
     assert fit["profile"]["name"] == "ice.stuck" and len(fit["profile"]["grid"]) == 10
     assert main(["design", "check", str(path), "--resolution", "2", "--fit", "--beta", "inf"]) == 1
     assert "maximum-likelihood fit: not run: deterministic answers" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "extra, msg",
+    [
+        (["--set", "nonsense=1"], "expected FIELD=VALUE with FIELD one of"),
+        (["--set", "belief_prior_std=-1"], "belief_prior_std must be positive"),
+        (["--updates", "30"], "multiple of check_every"),
+    ],
+)
+def test_the_recovery_command_names_bad_input_in_one_line(tmp_path, capsys, extra, msg):
+    out = tmp_path / "rec"
+    assert main(["design", "recovery", "nav1", "--out", str(out), *extra]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.strip().count("\n") == 0
+    assert not out.exists()
+
+
+def test_the_oracle_line_says_whether_every_seed_beats_random(tmp_path):
+    from mindgap.commands.design import oracle_line
+
+    jobs = tmp_path / "jobs"
+    jobs.mkdir()
+    (jobs / "nav2__reference.json").write_text(json.dumps({"random_return": -138.0}))
+    (jobs / "nav2__sac.json").write_text(json.dumps({"final": [-43.7, -209.0, -44.6]}))
+    text, rec = oracle_line(tmp_path, "nav2")
+    assert "2 of 3 SAC seeds above" in text and "NOT reliable" in text and rec["lowest"] == -209.0
+    (jobs / "nav2__sac.json").write_text(json.dumps({"final": [-43.7, -44.6]}))
+    assert oracle_line(tmp_path, "nav2")[1]["reliable"]
+    assert "no finished SAC" in oracle_line(tmp_path, "nav1")[0]
+

@@ -29,4 +29,4 @@ def test_a_live_teacher_needs_a_running_study(tmp_path, capsys):
     assert main(argv) == 2
     assert "start the study first" in capsys.readouterr().err
     assert main(["pebble", "--world", "nav1", "--teacher", "oracle", "--out", str(tmp_path)]) == 2
-    assert "--teacher must be biased, true or study:STORE" in capsys.readouterr().err
+    assert "--teacher must be biased, unbiased, true or study:STORE" in capsys.readouterr().err

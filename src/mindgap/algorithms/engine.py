@@ -329,29 +329,34 @@ def run_record(world, seeds: int, **extra) -> dict:
     return {**meta, "seeds": seeds, **extra}
 
 
+TEACHERS = ("biased", "unbiased", "true")
+"""The simulated people who compare segments: r_H + log T_H under a belief (``biased``), r_H + log T
+under the true dynamics (``unbiased``: the same person without a bias), r_H alone (``true``: B-Pref's)."""
+
+
 def preference_teacher(world, cfg, seeds: int, teacher, belief: str | None, *, who: str):
     """The person who compares segments, and the run record naming them.
 
     Args:
-        teacher: ``"biased"`` (r_H + log T_H under ``belief``, default the world's first),
-            ``"true"`` (r_H only) or a host teacher (a callable with a ``name``).
+        teacher: one of :data:`TEACHERS` or a host teacher (a callable with a ``name``); ``belief``
+            names the biased person's belief (default the world's first).
 
     Returns:
         (a :class:`~mindgap.teachers.preference.PreferenceTeacher` or the host teacher, run record).
     """
     host = callable(teacher)
-    if not host and teacher not in ("biased", "true"):
-        raise ValueError(f"teacher must be 'biased', 'true' or a host teacher, got {teacher!r}")
+    if not host and teacher not in TEACHERS:
+        raise ValueError(f"teacher must be one of {', '.join(TEACHERS)} or a host teacher, got {teacher!r}")
     if not host and cfg.method != "sac":
-        check_env(world.env, density=teacher == "biased", who=f"{who}'s simulated person", discrete_actions=True)
+        check_env(world.env, density=teacher != "true", who=f"{who}'s simulated person", discrete_actions=True)
         if world.env.reward is None:
             raise ValueError(f"{who}'s simulated person needs the env's reward; this env has none")
     meta = run_record(world, seeds, teacher=teacher.name if host else teacher, belief=belief)
     meta["config"] = cfg.as_dict()
     if host:
         return teacher, meta
-    belief_params = world.belief(belief) if teacher == "biased" else None
-    tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher == "biased")
+    belief_params = {"biased": lambda: world.belief(belief), "unbiased": lambda: world.params}.get(teacher, lambda: None)()
+    tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher != "true")
     return PreferenceTeacher(world.params, belief_params, world.env, tcfg), meta
 
 

@@ -95,6 +95,7 @@ _FAST = dict(
     prefbias=PrefBiasConfig(
         reward_hidden=(8, 8),
         updates=10,
+        check_every=5,
         batch_size=8,
         dynamics=DynamicsConfig(hidden=(8, 8), max_epochs=3, steps_per_epoch=5, batch_size=32),
     ),

@@ -28,7 +28,21 @@ Units: f_φ's density of a move is stated in the world's units (``PrefBiasState.
 person's own belief scores segments as the person does.
 Priors: p(w) = N(w₀, s_w²) centred on a random initialisation w₀; p(φ) = N(ψ, s_φ²)
 centred on the agent's dynamics model f_ψ (``belief_prior="dynamics"``, the default) or on
-a random initialisation (``"random"``), §3.3.3.1 "Prior".
+a random initialisation (``"random"``), §3.3.3.1 "Prior". The dissertation leaves s_φ open;
+here it has two values (:func:`belief_prior_scales`): narrow on every weight of the MLP
+(``belief_prior_std``), so that the posterior's draws of the predicted move stay within the
+world's noise, and wide on a disturbance of the stay logit (``stay_prior_std``), the part of a
+belief a person gets wrong by a lot. With ``stay_local`` the disturbance is local: radial basis
+bumps over the observation added to f_ψ's stay logit (:class:`~mindgap.models.prefbias_nets.BeliefWeights`),
+so a belief about one place does not spread to the places beside it. One narrow scale for all
+pins the stay probability at f_ψ's; one wide scale for all lets the draws of the predicted move
+spread by twice the world's noise, and the likelihood then prefers a wide Gaussian to a stuck
+robot; a wide prior on the MLP's stay column moves the floor with the ice
+(docs/experiments/identifiability.md, "The belief posterior").
+
+Held-out answers (``holdout_every``): every k-th answered pair is kept out of the gradient steps,
+and :func:`fit` keeps the posterior whose mean predicts them best (early stopping), so that r_w
+does not fit the answers' noise.
 
 Ω_w and Ω_φ are updated alternately (the two gradients of §3.3.3.1), each with its own
 Adam state: every round takes one step on Ω_w with φ held fixed, then one on Ω_φ with w
@@ -52,13 +66,17 @@ from ..models.bayes import Gaussian, init_gaussian, kl_divergence
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_sizes
 from ..models.mlp import Params, init_mlp
 from ..models.prefbias_nets import (
+    STAY_GAIN,
+    BeliefWeights,
     absorbing_value,
     belief_log_prob,
+    belief_net,
+    belief_weights_init,
     draw_per_pair,
     reward_value,
     reward_weights_init,
 )
-from ..models.reward_ensemble import ABSORBING_STATES
+from ..models.reward_ensemble import ABSORBING_STATES, RBF_MAX_DIM
 
 BELIEF_PRIORS = ("dynamics", "random")
 
@@ -86,8 +104,30 @@ class PrefBiasConfig:
     """Centre of p(φ): 'dynamics' (f_ψ's parameters) or 'random' (a random initialisation)."""
     reward_prior_std: float = 1.0
     """Standard deviation s_w of p(w) around its random centre (wide: nothing is known about the reward)."""
-    belief_prior_std: float = 0.1
-    """Standard deviation s_φ of p(φ) around its centre (narrow: a belief is a disturbance of f_ψ)."""
+    belief_prior_std: float = 0.01
+    """Standard deviation s_φ of p(φ) around its centre on every weight but the stay logit's (narrow: a
+    belief is a disturbance of f_ψ). It sets how far apart the posterior's draws of the predicted move
+    are: 0.1 on every weight spreads them by 0.11 cells on nav1's ice, twice the world's noise, and the
+    likelihood then prefers a wide Gaussian to a stuck robot; 0.01 spreads them by about 0.02 cells
+    (``mindgap design recovery``; docs/experiments/identifiability.md, "The belief posterior")."""
+    stay_prior_std: float | None = 3.0
+    """s_φ on the disturbance of the stay logit, the part of the belief a person may get wrong by a lot
+    (P(stuck) 0.9 against the truth's 0.1 is a logit change of 4.4), so its prior is wide where the
+    move's is narrow (§3.3.3.1, "Prior": the prior states what is known of the belief beforehand).
+    With ``stay_local``: the standard deviation of each bump's height, in logit units (nav1's person
+    is 1.5 of them from f_ψ); otherwise on the stay logit's output column, its weights and bias.
+    None: ``belief_prior_std`` (one scale for all). Measured by ``mindgap design recovery nav1``
+    (docs/experiments/identifiability.md, "The belief posterior")."""
+    stay_local: bool = True
+    """Disturb the stay logit place by place (:class:`~mindgap.models.prefbias_nets.BeliefWeights`:
+    radial basis bumps over the observation, worlds of at most three observation dimensions with the
+    stay head; elsewhere the output column's wide prior stands in). Through the column, a change
+    the answers ask for on nav1's ice spreads to the floor and goal beside it, where the answers
+    cannot hold it back (docs/experiments/identifiability.md, "The belief posterior")."""
+    random_prior_std: float = 1.0
+    """s_φ on every weight with ``belief_prior="random"``: a prior centred on a random network knows
+    nothing of the belief, so it is as wide as the reward's (``reward_prior_std``); the narrow scales
+    above state what f_ψ knows and apply to the dynamics prior only."""
     init_std: float = 0.01
     """Posterior standard deviation of every parameter at initialisation."""
     kl_scale: float = 1.0
@@ -100,6 +140,12 @@ class PrefBiasConfig:
     """Answered pairs per gradient step."""
     updates: int = 300
     """Alternating rounds per fit (a step on Ω_w, then a step on Ω_φ)."""
+    holdout_every: int = 8
+    """Hold out every k-th answered pair (k = 8: 12.5%) from the gradient steps and keep the posterior
+    of the check with the lowest negative log-likelihood of the held-out answers (early stopping): r_w
+    fits 800 answers more closely than the person who gave them does. 0 trains on every answer."""
+    check_every: int = 25
+    """Rounds between two held-out checks (``updates`` is a multiple of it when ``holdout_every`` is set)."""
 
     def check(self) -> None:
         if self.absorbing_state not in ABSORBING_STATES:
@@ -108,11 +154,17 @@ class PrefBiasConfig:
             )
         if self.belief_prior not in BELIEF_PRIORS:
             raise ValueError(f"unknown belief_prior {self.belief_prior!r}: choose from {', '.join(BELIEF_PRIORS)}")
-        for name in ("reward_prior_std", "belief_prior_std", "init_std", "lr"):
+        for name in ("reward_prior_std", "belief_prior_std", "random_prior_std", "init_std", "lr"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if self.stay_prior_std is not None and not self.stay_prior_std > 0:
+            raise ValueError(f"stay_prior_std must be positive or None, got {self.stay_prior_std}")
         if self.kl_scale < 0 or self.mc_samples < 1 or self.batch_size < 1 or self.updates < 1:
             raise ValueError("kl_scale must be ≥ 0; mc_samples, batch_size and updates at least 1")
+        if self.holdout_every < 0 or self.holdout_every == 1:
+            raise ValueError(f"holdout_every must be 0 (none) or at least 2, got {self.holdout_every}")
+        if self.holdout_every and (self.check_every < 1 or self.updates % self.check_every):
+            raise ValueError(f"updates ({self.updates}) must be a multiple of check_every ({self.check_every})")
 
 
 class PrefBiasState(NamedTuple):
@@ -130,10 +182,12 @@ class PrefBiasState(NamedTuple):
 
 
 class FitInfo(NamedTuple):
-    """Last round's negative ELBO per pair (w step), and accuracy of the posterior-mean model on all answered pairs."""
+    """Last round's negative ELBO per pair (w step), accuracy of the kept posterior mean on all answered
+    pairs, and its negative log-likelihood per held-out pair (NaN without held-out answers)."""
 
     loss: jax.Array
     accuracy: jax.Array
+    held_nll: jax.Array
 
 
 def prefbias_init(
@@ -152,9 +206,10 @@ def prefbias_init(
     k_w, k_phi = jax.random.split(key)
     w0 = reward_weights_init(k_w, obs_dim, act_dim, cfg.reward_hidden, cfg.absorbing, cfg.absorbing_state == "single")
     if cfg.belief_prior == "dynamics":
-        phi0 = dynamics.params
+        net0 = dynamics.params
     else:
-        phi0 = init_mlp(k_phi, dynamics_sizes(obs_dim, act_dim, cfg.dynamics.hidden, cfg.stay_head))
+        net0 = init_mlp(k_phi, dynamics_sizes(obs_dim, act_dim, cfg.dynamics.hidden, cfg.stay_head))
+    phi0 = belief_weights_init(net0, obs_dim, local_stay(cfg, obs_dim))
     reward, belief = init_gaussian(w0, cfg.init_std), init_gaussian(phi0, cfg.init_std)
     opt = optax.adam(cfg.lr)
     opt_w, opt_phi = opt.init(ravel_pytree(reward)[0]), opt.init(ravel_pytree(belief)[0])  # see fit
@@ -168,8 +223,17 @@ def with_dynamics(state: PrefBiasState, dynamics: DynamicsModel, cfg: PrefBiasCo
     Retrain f_ψ with ``init=`` the previous model so its normalisation, which f_φ reads,
     stays the same. With ``belief_prior="random"`` only the normalisation is taken.
     """
-    prior = dynamics.params if cfg.belief_prior == "dynamics" else state.belief_prior
+    if cfg.belief_prior != "dynamics":
+        return state._replace(norm=dynamics.norm)
+    prior = state.belief_prior
+    prior = prior._replace(net=dynamics.params) if isinstance(prior, BeliefWeights) else dynamics.params
     return state._replace(belief_prior=prior, norm=dynamics.norm)
+
+
+def local_stay(cfg: PrefBiasConfig, obs_dim: int) -> bool:
+    """Whether f_φ gets a local stay disturbance: ``stay_local`` with the stay head, on a world of at
+    most :data:`~mindgap.models.reward_ensemble.RBF_MAX_DIM` observation dimensions."""
+    return cfg.stay_local and cfg.stay_head and obs_dim <= RBF_MAX_DIM
 
 
 def segment_scores(rewards: jax.Array, log_f: jax.Array, mask: jax.Array) -> jax.Array:
@@ -245,25 +309,67 @@ def negative_elbo(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: Pre
         return jnp.sum(jnp.where(seen, bt_cross_entropy(logit, data.label), 0.0)) / n
 
     nll = jax.vmap(draw)(jax.random.split(key, (cfg.mc_samples, 2))).mean()
+    scales = belief_prior_scales(state.belief.mean, state.norm.out_mean.shape[-1], cfg)
     kl = kl_divergence(state.reward, state.reward_prior, cfg.reward_prior_std) + kl_divergence(
-        state.belief, state.belief_prior, cfg.belief_prior_std
+        state.belief, state.belief_prior, scales
     )
     return nll + kl * cfg.kl_scale / n
+
+
+def belief_prior_scales(belief_mean: Params, obs_dim: int, cfg: PrefBiasConfig) -> jax.Array:
+    """s_φ of every parameter of f_φ, flat in ``ravel_pytree`` order: ``belief_prior_std`` on the MLP
+    (``random_prior_std`` with ``belief_prior="random"``) and ``stay_prior_std`` on the stay disturbance:
+    the local one's weights, or without one (and with the dynamics prior) the stay logit's output column."""
+    base = cfg.random_prior_std if cfg.belief_prior == "random" else cfg.belief_prior_std
+    stay = base if cfg.stay_prior_std is None else cfg.stay_prior_std
+    net = belief_net(belief_mean)
+    scales = jax.tree.map(lambda x: jnp.full_like(x, base), net)
+    if isinstance(belief_mean, BeliefWeights):  # stay_prior_std is per unit of a bump's height in the logit
+        return ravel_pytree(BeliefWeights(scales, jnp.full_like(belief_mean.stay, stay / STAY_GAIN)))[0]
+    w, _ = net[-1]
+    if cfg.belief_prior == "dynamics" and w.shape[-1] == 2 * obs_dim + 1:
+        sw, sb = scales[-1]
+        scales = (*scales[:-1], (sw.at[..., -1].set(stay), sb.at[..., -1].set(stay)))
+    return ravel_pytree(scales)[0]
+
+
+def held_out(count: jax.Array, capacity: int, every: int) -> jax.Array:
+    """Which of ``capacity`` answer slots are held out: every ``every``-th of the first ``count`` ([capacity] bool)."""
+    i = jnp.arange(capacity)
+    if not every:
+        return jnp.zeros(capacity, bool)
+    return (i < count) & (i % every == every - 1)
+
+
+def _train_index(i: jax.Array, every: int) -> jax.Array:
+    """The i-th answer slot that is not held out (``every``-th slots skipped)."""
+    return i if not every else i + i // (every - 1)
 
 
 def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfig) -> tuple[PrefBiasState, FitInfo]:
     """Alternating Adam steps on q(w) and q(φ) over the answered pairs of ``data`` (Alg. 2, line 7).
 
-    ``cfg.updates`` rounds; in each, a minibatch of ``cfg.batch_size`` answered pairs drawn
+    ``cfg.updates`` rounds; in each, a minibatch of ``cfg.batch_size`` training pairs drawn
     with replacement and a step on Ω_w of ``E_q[CE] + kl_scale · KL[q(w)‖p(w)] / N``, then
-    a fresh minibatch and a step on Ω_φ of ``E_q[CE] + kl_scale · KL[q(φ)‖p(φ)] / N``.
+    a fresh minibatch and a step on Ω_φ of ``E_q[CE] + kl_scale · KL[q(φ)‖p(φ)] / N``; N the
+    training pairs. p(φ) has one scale per parameter (:func:`belief_prior_scales`).
+
+    With ``cfg.holdout_every`` every k-th answered pair is held out (:func:`held_out`); every
+    ``cfg.check_every`` rounds the posterior mean's negative log-likelihood of the held-out
+    answers is measured, and the posterior of the best check (the start included) is kept, with
+    its optimiser states. While no answer is held out yet, the last one is kept.
 
     Returns:
         (new state, :class:`FitInfo`).
     """
     opt = optax.adam(cfg.lr)
-    n = jnp.maximum(data.count, 1)
+    capacity, every = data.label.shape[0], cfg.holdout_every
+    held = held_out(data.count, capacity, every)
+    n_held = held.sum()
+    n = jnp.maximum(data.count - n_held, 1)
     kl_weight = cfg.kl_scale / n
+    d = state.norm.out_mean.shape[-1]
+    phi_scales = belief_prior_scales(state.belief.mean, d, cfg)
     # Flat parameter vectors keep the compiled program small (one Adam update per posterior).
     flat_w, unravel_w = ravel_pytree(state.reward)
     flat_phi, unravel_phi = ravel_pytree(state.belief)
@@ -271,7 +377,7 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
     # Every minibatch and noise key drawn up front: random-number ops inside the scan body
     # cost far more compile time than their share of the work.
     k_idx, k_mc = jax.random.split(key)
-    all_idx = jax.random.randint(k_idx, (2 * cfg.updates, cfg.batch_size), 0, n)
+    all_idx = _train_index(jax.random.randint(k_idx, (2 * cfg.updates, cfg.batch_size), 0, n), every)
     all_keys = jax.random.split(k_mc, (2 * cfg.updates, cfg.mc_samples, 2))
 
     def loss_fn(w, phi, idx, keys):
@@ -279,7 +385,7 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
         seg_a, seg_b = jax.tree.map(lambda x: x[idx], data.seg_a), jax.tree.map(lambda x: x[idx], data.seg_b)
         nll = expected_nll(reward, belief, state.norm, seg_a, seg_b, data.label[idx], keys, cfg, state.log_unit)
         kl_w = kl_divergence(reward, state.reward_prior, cfg.reward_prior_std)
-        kl_phi = kl_divergence(belief, state.belief_prior, cfg.belief_prior_std)
+        kl_phi = kl_divergence(belief, state.belief_prior, phi_scales)
         return nll + kl_weight * (kl_w + kl_phi)
 
     def step(carry, xs):
@@ -295,12 +401,36 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
         upd, opt_phi = opt.update(g_phi, opt_phi, phi)
         return ((w, phi + upd), (opt_w, opt_phi)), (loss_w, loss_phi)
 
+    def held_nll(carry):
+        (w, phi), _ = carry
+        p = preference_prob(unravel_w(w).mean, unravel_phi(phi).mean, state.norm, data.seg_a, data.seg_b, cfg,
+                            state.log_unit)  # fmt: skip
+        logit = jnp.log(jnp.clip(p, 1e-6, 1 - 1e-6)) - jnp.log1p(-jnp.clip(p, 1e-6, 1 - 1e-6))
+        return jnp.sum(jnp.where(held, bt_cross_entropy(logit, data.label), 0.0)) / jnp.maximum(n_held, 1)
+
     # round i: a step on Ω_w with minibatch 2i, then one on Ω_φ with minibatch 2i + 1
     pairs = (all_idx.reshape(cfg.updates, 2, cfg.batch_size), all_keys.reshape(cfg.updates, 2, *all_keys.shape[1:]))
     carry = ((flat_w, flat_phi), (state.opt_w, state.opt_phi))
-    ((flat_w, flat_phi), (opt_w, opt_phi)), (losses_w, _) = jax.lax.scan(step, carry, pairs)
+    if every:
+        checks = cfg.updates // cfg.check_every
+        blocks = jax.tree.map(lambda x: x.reshape(checks, cfg.check_every, *x.shape[1:]), pairs)
+
+        def block(c, xs):
+            run, best, best_nll = c
+            run, losses = jax.lax.scan(step, run, xs)
+            nll = held_nll(run)
+            better = (nll <= best_nll) | (n_held == 0)
+            best = jax.tree.map(lambda a, b: jnp.where(better, a, b), run, best)
+            return (run, best, jnp.where(better, nll, best_nll)), losses[0][-1]
+
+        (_, carry, best_nll), losses_w = jax.lax.scan(block, (carry, carry, held_nll(carry)), blocks)
+    else:
+        carry, (losses_w, _) = jax.lax.scan(step, carry, pairs)
+        best_nll = jnp.nan
+    ((flat_w, flat_phi), (opt_w, opt_phi)) = carry
     state = state._replace(reward=unravel_w(flat_w), belief=unravel_phi(flat_phi), opt_w=opt_w, opt_phi=opt_phi)
     p = preference_prob(state.reward.mean, state.belief.mean, state.norm, data.seg_a, data.seg_b, cfg, state.log_unit)
-    seen = jnp.arange(data.label.shape[0]) < data.count
+    seen = jnp.arange(capacity) < data.count
     hit = ((p > 0.5) == (data.label > 0.5)) | (data.label == 0.5)
-    return state, FitInfo(losses_w[-1], jnp.sum(hit & seen) / n)
+    held_nll_out = jnp.where(n_held > 0, best_nll, jnp.nan)
+    return state, FitInfo(losses_w[-1], jnp.sum(hit & seen) / jnp.maximum(data.count, 1), held_nll_out)

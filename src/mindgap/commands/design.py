@@ -1,6 +1,8 @@
-"""``mindgap design check``: is a world (and its simulated person) a valid test of PrefBias?
+"""``mindgap design check`` and ``mindgap design recovery``: is a world (and its simulated person) a valid
+test of PrefBias, and does PrefBias's inference recover the belief there?
 
-mindgap design check NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--segment L] [--beta B] [--fit] [--out DIR]
+mindgap design check NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--segment L] [--beta B] [--fit]
+                     [--precision EPS] [--oracle RUN] [--out DIR]
 
 Prints, for each world, the exact finite-horizon plans under r_H, under what an unaware
 learner learns and under an unbiased person, the per-step bias by terrain, each belief
@@ -8,8 +10,17 @@ parameter's standard error at the budget, the identifiability conditions, and th
 (:mod:`~mindgap.planning.design_check`). With ``--fit``, also a maximum-likelihood fit of the
 belief and a state-form reward to the budget's simulated answers (:mod:`~mindgap.planning.belief_fit`):
 each estimate and its standard error beside the Fisher one, and the first biased parameter's
-profile log-likelihood. With ``--out``: ``WORLD.txt`` (the same text) and ``WORLD.json``. The
-exit status is 0 when every world is valid, 1 when one is not (the fit does not change it).
+profile log-likelihood; ``--precision`` makes the fit's learner predict the move mean with a
+smooth error of that RMS (cells), the precision a learned dynamics model reaches. ``--oracle RUN``
+says whether every SAC oracle seed of a run folder beats the random policy. With ``--out``:
+``WORLD.txt`` (the same text) and ``WORLD.json``. The exit status is 0 when every world is valid,
+1 when one is not (the fit does not change it).
+
+mindgap design recovery NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--updates U]
+                        [--person biased|unbiased] [--set FIELD=VALUE …] [--no-tabular] [--out DIR]
+
+Fits PrefBias's inference alone to simulated answers and reports, by terrain, the learned belief
+against the person's on held-out true transitions (:mod:`~mindgap.experiments.belief_recovery`).
 """
 
 from __future__ import annotations
@@ -36,27 +47,44 @@ def add_parser(sub) -> None:
     c.add_argument("--resolution", type=int, default=4, help="sub-cells per cell side (default 4)")
     c.add_argument("--seed", type=int, default=0, help="random seed of the Monte Carlo parts")
     c.add_argument("--fit", action="store_true", help="also fit the belief by maximum likelihood to simulated answers")
+    c.add_argument(
+        "--precision", type=float, default=0.0, metavar="EPS",
+        help="the fit's learner predicts the move mean with a smooth error of RMS EPS cells (default 0: exactly)",
+    )  # fmt: skip
+    c.add_argument(
+        "--oracle", type=Path, metavar="RUN",
+        help="a run folder of nav/priors/sampling: say whether every SAC oracle seed there beats the random policy",
+    )  # fmt: skip
     c.add_argument("--out", type=Path, help="folder for WORLD.txt and WORLD.json")
+    r = dsub.add_parser(
+        "recovery", help="does PrefBias's inference recover the belief from the answers? (docs/experiments/identifiability.md)"
+    )
+    r.add_argument("worlds", nargs="+", help="named terrain worlds or world files")
+    r.add_argument("--belief", help="the person's belief (default: each world's first)")
+    r.add_argument("--budget", type=int, default=800, help="answered queries to learn from (default 800)")
+    r.add_argument("--segment", type=int, default=10, help="steps per segment (default 10)")
+    r.add_argument("--updates", type=int, default=3000, help="rounds of the inference (default 3000)")
+    r.add_argument("--person", choices=("biased", "unbiased"), default="biased", help="who answers (default biased)")
+    r.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                   help="a PrefBiasConfig field of the inference, e.g. belief_prior_std=0.1 (repeatable)")  # fmt: skip
+    r.add_argument("--no-tabular", action="store_true", help="skip the tabular maximum-likelihood reference")
+    r.add_argument("--seed", type=int, default=0, help="random seed")
+    r.add_argument("--out", type=Path, help="folder for WORLD-recovery.txt, .json and .png (the stay maps)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..envs.resolve import resolve_env
-    from ..envs.terrain import TerrainWorld
+    if args.design_command == "recovery":
+        return _recovery(args)
     from ..planning.design_check import DesignConfig, design_check, plan_policies, report
     from ..teachers.preference import TeacherConfig
 
     if args.budget < 1 or args.segment < 1 or args.resolution < 1:
         raise ValueError("--budget, --segment and --resolution must be at least 1")
-    worlds = []
-    for spec in args.worlds:  # every world loaded and checked before anything is computed
-        world = resolve_env(spec)
-        if not isinstance(world, TerrainWorld):
-            raise ValueError(f"the design check plans on a terrain world's map; {spec} is not a terrain world")
-        if not world.beliefs:
-            raise ValueError(f"{spec} declares no belief to check")
-        if args.belief is not None:
-            world.belief(args.belief)  # one line naming the beliefs it has
-        worlds.append(world)
+    if not args.precision >= 0:
+        raise ValueError(f"--precision must be at least 0 (cells), got {args.precision}")
+    if args.oracle is not None and not (args.oracle / "jobs").is_dir():
+        raise ValueError(f"--oracle {args.oracle}: not a run folder (no jobs/ in it)")
+    worlds = _terrain_worlds(args.worlds, args.belief)
     cfg = DesignConfig(
         n=args.resolution,
         budget=args.budget,
@@ -69,8 +97,11 @@ def run(args: argparse.Namespace) -> int:
         planned = plan_policies(world, world.belief(args.belief), cfg)  # planned once for the check and the fit
         chk = design_check(world, args.belief, cfg, planned)
         text, record = report(chk), chk.as_dict()
+        if args.oracle is not None:
+            line, record["oracle"] = oracle_line(args.oracle, world.name)
+            text += line
         if args.fit:
-            fit_text, fit = _fit(world, args.belief, cfg, chk.parameters, planned)
+            fit_text, fit = _fit(world, args.belief, cfg, chk.parameters, planned, args.precision)
             record["fit"] = json.loads(json.dumps(fit), parse_constant=lambda _: None)  # ±inf, NaN as null
             text += "\n" + fit_text
         print(text)
@@ -84,16 +115,104 @@ def run(args: argparse.Namespace) -> int:
     return 0 if valid else 1
 
 
-def _fit(world, belief, cfg, fisher, planned) -> tuple[str, dict | None]:
+def _terrain_worlds(specs, belief):
+    """Every world loaded and checked before anything is computed (one line on the first that fails)."""
+    from ..envs.resolve import resolve_env
+    from ..envs.terrain import TerrainWorld
+
+    worlds = []
+    for spec in specs:
+        world = resolve_env(spec)
+        if not isinstance(world, TerrainWorld):
+            raise ValueError(f"the design tools plan on a terrain world's map; {spec} is not a terrain world")
+        if not world.beliefs:
+            raise ValueError(f"{spec} declares no belief to check")
+        if belief is not None:
+            world.belief(belief)  # one line naming the beliefs it has
+        worlds.append(world)
+    return worlds
+
+
+def prefbias_overrides(items: list[str]) -> dict:
+    """``FIELD=VALUE`` items as PrefBiasConfig fields (VALUE a Python literal; a bare word is a string)."""
+    import ast
+
+    from ..algorithms.prefbias_inference import PrefBiasConfig
+
+    fields = {f.name for f in dataclasses.fields(PrefBiasConfig)}
+    out = {}
+    for item in items:
+        name, eq, value = item.partition("=")
+        name = name.strip()
+        if not eq or name not in fields:
+            raise ValueError(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {', '.join(sorted(fields))}")
+        try:
+            out[name] = ast.literal_eval(value.strip())
+        except (ValueError, SyntaxError):
+            out[name] = value.strip()
+    return out
+
+
+def _recovery(args) -> int:
+    from .._io import atomic_write
+    from ..algorithms.prefbias_inference import PrefBiasConfig
+    from ..experiments.belief_recovery import RecoveryConfig, belief_recovery, report, save_figure
+
+    cfg = RecoveryConfig(budget=args.budget, segment=args.segment, updates=args.updates, person=args.person,
+                         tabular=not args.no_tabular, seed=args.seed)  # fmt: skip
+    cfg.check()
+    try:
+        pcfg = PrefBiasConfig(**prefbias_overrides(args.set))
+    except TypeError as e:
+        raise ValueError(f"--set: {e}") from None
+    pcfg.check()
+    for world in _terrain_worlds(args.worlds, args.belief):
+        rec = belief_recovery(world, pcfg, cfg, args.belief, progress=lambda m, w=world.name: print(f"{w}: {m} …", flush=True))
+        text = report(rec)
+        print(text)
+        if args.out is not None:
+            args.out.mkdir(parents=True, exist_ok=True)
+            atomic_write(args.out / f"{world.name}-recovery.txt", text)
+            atomic_write(args.out / f"{world.name}-recovery.json", json.dumps(rec.as_dict(), indent=2))
+            save_figure(rec, world, args.out / f"{world.name}-recovery.png")
+    return 0
+
+
+def oracle_line(run: Path, world: str) -> tuple[str, dict | None]:
+    """Whether every SAC oracle seed of a run folder beats the uniformly random policy on ``world``:
+    a normalised score divides by the oracle, so one failed oracle seed makes it meaningless."""
+    jobs = run / "jobs"
+    sac, ref = jobs / f"{world}__sac.json", jobs / f"{world}__reference.json"
+    if not (sac.is_file() and ref.is_file()):
+        return f"the oracle: {run} has no finished SAC and reference jobs for {world}\n", None
+    from ..experiments.prefbias_common import seed_returns
+
+    rand = float(json.loads(ref.read_text())["random_return"])
+    means = seed_returns(json.loads(sac.read_text())).tolist()
+    above = sum(m > rand for m in means)
+    ok = above == len(means)
+    text = (
+        f"the oracle ({run}): {above} of {len(means)} SAC seeds above the random policy's {rand:.1f}"
+        f" (lowest {min(means):.1f}): {'reliable' if ok else 'NOT reliable: a score normalised by it means little'}\n"
+    )
+    return text, {"seeds": len(means), "above_random": above, "random": rand, "lowest": min(means), "reliable": ok}
+
+
+def _fit(world, belief, cfg, fisher, planned, precision: float = 0.0) -> tuple[str, dict | None]:
     """The maximum-likelihood fit as text and as a plain record (None where it cannot run)."""
     from ..planning.belief_fit import FLAT_NATS, NO_SCALE, Z_MARGIN, fit_world, verdict
 
     if cfg.teacher.beta is None:
         return f"maximum-likelihood fit: not run: {NO_SCALE}\n", None
-    fit = fit_world(world, belief, cfg, planned=planned)
+    fit = fit_world(world, belief, cfg, planned=planned, precision=precision)
     se = {p.name: p.stderr for p in fisher}
+    learner = (
+        "a learner that predicts the move mean exactly (--precision 0)" if precision == 0
+        else f"a learner whose predicted move mean errs by a smooth field of RMS {precision:g} cells"
+    )  # fmt: skip
     lines = [
-        f"maximum-likelihood fit to {cfg.budget} simulated answers (β = {cfg.teacher.beta:g}), started at the truth:",
+        f"maximum-likelihood fit to {cfg.budget} simulated answers (β = {cfg.teacher.beta:g}), started at the truth,"
+        f" by {learner}:",
         "  parameter     truth → belief    estimate ± SE      Fisher SE   verdict",
     ]
     for e in fit.parameters:
@@ -115,6 +234,7 @@ def _fit(world, belief, cfg, fisher, planned) -> tuple[str, dict | None]:
         "on the fit's logit or log scale)"
     )
     record = {
+        "precision": precision,
         "parameters": [{**e._asdict(), "verdict": verdict(fit, e.name)} for e in fit.parameters],
         "rewards": [e._asdict() for e in fit.rewards],
         "loglik": fit.loglik,

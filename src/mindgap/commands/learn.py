@@ -31,7 +31,8 @@ def add_parsers(sub) -> None:
             p.add_argument(
                 "--teacher",
                 default="biased",
-                help="biased: r_H + log T_H under the belief; true: the ordinary B-Pref teacher; "
+                help="biased: r_H + log T_H under the belief; unbiased: r_H + log T (the same person, no bias); "
+                "true: r_H alone (the ordinary B-Pref teacher); "
                 "study:STORE: people answering live through the study app (mindgap study serve --db STORE)",
             )
             p.add_argument(
@@ -276,8 +277,8 @@ def run(args: argparse.Namespace) -> int:
         from ..study.live import StudyTeacher
 
         host = StudyTeacher(teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
-    elif teacher not in ("biased", "true"):
-        raise ValueError(f"--teacher must be biased, true or study:STORE, got {teacher!r}")
+    elif teacher not in ("biased", "unbiased", "true"):
+        raise ValueError(f"--teacher must be biased, unbiased, true or study:STORE, got {teacher!r}")
     cfg = preset(args.command, **over)
     res = train(
         world,

@@ -36,7 +36,8 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--teacher",
         default="biased",
-        help="biased: r_H + log T_H under the belief; true: the ordinary B-Pref teacher; "
+        help="biased: r_H + log T_H under the belief; unbiased: r_H + log T (the same person, no bias); "
+                "true: r_H alone (the ordinary B-Pref teacher); "
         "study:STORE: people answering live through the study app (mindgap study serve --db STORE)",
     )
     p.add_argument("--answer-timeout", type=float, default=600.0, help="study teacher: seconds to wait per round")
@@ -122,8 +123,8 @@ def run(args: argparse.Namespace) -> int:
         from ..study.live import StudyTeacher
 
         host = StudyTeacher(teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
-    elif teacher not in ("biased", "true"):
-        raise ValueError(f"--teacher must be biased, true or study:STORE, got {teacher!r}")
+    elif teacher not in ("biased", "unbiased", "true"):
+        raise ValueError(f"--teacher must be biased, unbiased, true or study:STORE, got {teacher!r}")
     res = train(
         world,
         cfg,

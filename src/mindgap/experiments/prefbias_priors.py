@@ -47,13 +47,13 @@ class PriorsConfig:
     priors: tuple[str, ...] = BELIEF_PRIORS
     """Centres of p(φ) to compare: 'dynamics' (f_ψ) and 'random'."""
     queries: int = 800
-    seeds: int = 5
+    seeds: int = 10
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))
     reference: pc.ReferenceConfig = pc.ReferenceConfig()
 
 
 def preset(name: str) -> PriorsConfig:
-    """``full`` (5 seeds, 800 queries, 50 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
+    """``full`` (10 seeds, 800 queries, 50 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
     if name == "full":
         return PriorsConfig()
     if name == "fast":
@@ -147,13 +147,26 @@ def _claims(world, rows: list[dict]) -> list[dict]:
         return []
     d, r = by["dynamics"], by["random"]
     measures = [ERRORS[p] for p in pc.biased_parts(world)] if wm.has_map(world) else []
-    return [
+
+    def se(key):  # standard error of the difference of the two priors' means (seeds independent)
+        std = key.replace("_mean", "_std")
+        return float(np.sqrt(d[std] ** 2 / max(d["seeds"], 1) + r[std] ** 2 / max(r["seeds"], 1)))
+
+    out = [
         pc.claim(
-            f"{world.name}: the dynamics prior gives the lower {what}", d[key] < r[key], f"{d[key]:.3f} vs {r[key]:.3f}"
+            f"{world.name}: the dynamics prior gives the lower {what} (by at least 2 standard errors)",
+            r[key] - d[key] >= 2 * se(key),
+            f"{d[key]:.3f} vs {r[key]:.3f} (2 SE = {2 * se(key):.3f})",
         )
-        for what, key in [*measures, ("reward error", "reward_error_mean")]
+        for what, key in measures
         if key in d and key in r  # belief errors need a map
-    ] + [
+    ]
+    if "reward_error_mean" in d and "reward_error_mean" in r:
+        d_err, r_err = d["reward_error_mean"], r["reward_error_mean"]
+        out.append(
+            pc.claim(f"{world.name}: the dynamics prior gives the lower reward error", d_err < r_err, f"{d_err:.3f} vs {r_err:.3f}")
+        )
+    return out + [
         pc.claim(
             f"{world.name}: the dynamics prior's return is at least the random prior's",
             d["return_mean"] >= r["return_mean"],

@@ -35,13 +35,13 @@ class SamplingConfig:
     """Named worlds or world files (each needs a belief)."""
     samplers: tuple[str, ...] = SAMPLERS
     queries: int = 800
-    seeds: int = 5
+    seeds: int = 10
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))
     reference: pc.ReferenceConfig = pc.ReferenceConfig()
 
 
 def preset(name: str) -> SamplingConfig:
-    """``full`` (5 seeds, 800 queries, 50 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
+    """``full`` (10 seeds, 800 queries, 50 000 steps) or ``fast`` (1 seed, 30 queries, 1500 steps)."""
     if name == "full":
         return SamplingConfig()
     if name == "fast":

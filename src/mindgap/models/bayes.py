@@ -64,7 +64,8 @@ def kl_divergence(post: Gaussian, prior_mean: Params | None, prior_std: float | 
         post: the posterior q.
         prior_mean: the centre of the factorised prior p = N(prior_mean, prior_std²), a
             pytree shaped like ``post.mean``; None centres it at zero.
-        prior_std: the prior's standard deviation s (scalar, > 0).
+        prior_std: the prior's standard deviation s (> 0): one for every parameter, or one each as a
+            flat array in ``ravel_pytree`` order.
 
     Returns:
         scalar ``Σ_i log(s/σ_i) + (σ_i² + (μ_i − m_i)²) / (2 s²) − ½``.

@@ -18,6 +18,12 @@
   deviation of a Gaussian on the next state's displacement, read through f_ψ's
   normalisation. Because the architectures match, ψ can be the centre of the prior p(φ).
 
+**Local stay disturbance** (``PrefBiasConfig.stay_local``, worlds of at most three observation
+dimensions): f_φ's weights are then :class:`BeliefWeights`, the MLP and the weights of radial
+basis bumps over the observation (:func:`stay_features`) added to the stay logit. The belief is
+f_ψ's network plus a disturbance of how often the robot fails to move, place by place; its prior
+is centred on 0, so f_φ starts at f_ψ exactly.
+
 A Gaussian cannot hold the point mass of a stuck or bumped step that the terrain worlds
 have; the scale floor (``min_std``) keeps the density of such steps finite. With
 ``PrefBiasConfig.stay_head`` both f_ψ and f_φ have a third head, the probability of not
@@ -48,9 +54,9 @@ import jax
 import jax.numpy as jnp
 
 from .bayes import Gaussian, sample_params
-from .gaussian_dynamics import DynamicsModel, Norm, dynamics_log_prob, has_stay_head, normalise_input, predict
+from .gaussian_dynamics import DynamicsModel, Norm, has_stay_head, next_state_log_prob, normalise_input, predict
 from .mlp import Params, init_mlp, mlp
-from .reward_ensemble import absorbing_features, rbf_count, soft_bound
+from .reward_ensemble import RBF_GAIN, absorbing_features, rbf_count, soft_bound
 
 
 def reward_sizes(obs_dim: int, act_dim: int, hidden: tuple[int, ...]) -> tuple[int, ...]:
@@ -111,20 +117,67 @@ def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array
     return reward_value(params, obs, act)
 
 
-def belief_predict(params: Params, norm: Norm, obs: jax.Array, act: jax.Array, min_std: float):
-    """Mean and standard deviation of the next state under f_φ with fixed weights: ([..., d], [..., d])."""
-    return predict(DynamicsModel(params, norm), obs, act, min_std)
+class BeliefWeights(NamedTuple):
+    """The weights of f_φ with a local stay disturbance: ``net`` the MLP's layers (f_ψ's architecture),
+    ``stay [M]`` the weights of :func:`stay_features`, added to the stay logit."""
+
+    net: Params
+    stay: jax.Array
 
 
-def belief_log_prob(params: Params, norm: Norm, obs, act, next_obs, min_std: float, log_unit=0.0) -> jax.Array:
+def belief_weights_init(net: Params, obs_dim: int, local: bool):
+    """f_φ's weights from an MLP of f_ψ's architecture; with ``local`` a stay disturbance of zeros
+    (f_φ = the MLP exactly), else the MLP's parameters alone."""
+    return BeliefWeights(net, jnp.zeros(rbf_count(obs_dim))) if local else net
+
+
+def belief_net(params) -> Params:
+    """The MLP part of f_φ's weights (all of them without a local stay disturbance)."""
+    return params.net if isinstance(params, BeliefWeights) else params
+
+
+STAY_GAIN = RBF_GAIN
+"""Height of each bump of :func:`stay_features` (the absorbing heads' gain): a step of Adam then moves the
+stay logit about as far as it moves the MLP's outputs. Measured on nav1 with unit-height bumps, 3,000
+rounds moved the icy corridor's stay probability to 0.80 and 6,000 to 0.89 (the person's 0.91): the fit
+was limited by its step size, not by the answers. The prior is stated per unit of height
+(:func:`~mindgap.algorithms.prefbias_inference.belief_prior_scales` divides by the gain), so the gain
+changes the pace of the fit and not the model."""
+
+
+def stay_features(obs: jax.Array, m: int) -> jax.Array:
+    """Gaussian bumps of height :data:`STAY_GAIN` on a grid over the observation (the radial basis grid of
+    the absorbing heads, :func:`~mindgap.models.reward_ensemble.absorbing_features`): ``[..., m]``.
+
+    Their weights are the local disturbance of f_φ's stay logit: each moves it near one place only,
+    so a person's belief that the robot gets stuck *here* (nav1's ice) is not spread to places where
+    the answers say little (the floor beside it, on which r_w absorbs any per-step constant).
+    """
+    return absorbing_features(obs, m) * (STAY_GAIN / RBF_GAIN)
+
+
+def _raw(params, norm: Norm, obs, act) -> jax.Array:
+    """f_φ's output: the MLP's, its stay logit moved by the local disturbance when there is one."""
+    raw = mlp(belief_net(params), normalise_input(norm, obs, act))
+    if isinstance(params, BeliefWeights):
+        raw = raw.at[..., -1].add(stay_features(obs, params.stay.shape[-1]) @ params.stay)
+    return raw
+
+
+def belief_predict(params, norm: Norm, obs: jax.Array, act: jax.Array, min_std: float):
+    """Mean and standard deviation of the next state (of a move) under f_φ with fixed weights: ([..., d], [..., d])."""
+    return predict(DynamicsModel(belief_net(params), norm), obs, act, min_std)
+
+
+def belief_log_prob(params, norm: Norm, obs, act, next_obs, min_std: float, log_unit=0.0) -> jax.Array:
     """log f_φ(s' | s, a) with fixed weights (with a stay head, the mixture's), a move's density
     in the units ``log_unit`` says (module docstring, "Units"): [...]."""
-    return dynamics_log_prob(DynamicsModel(params, norm), obs, act, next_obs, min_std, log_unit)
+    return next_state_log_prob(_raw(params, norm, obs, act), norm, obs, next_obs, min_std, log_unit)
 
 
-def belief_stay_prob(params: Params, norm: Norm, obs, act) -> jax.Array:
+def belief_stay_prob(params, norm: Norm, obs, act) -> jax.Array:
     """f_φ's probability of not moving at all (the stay head; NaN for a network without one): [...]."""
-    raw = mlp(params, normalise_input(norm, obs, act))
+    raw = _raw(params, norm, obs, act)
     if not has_stay_head(raw, obs):
         return jnp.full(raw.shape[:-1], jnp.nan)
     return jax.nn.sigmoid(raw[..., -1])

@@ -305,12 +305,43 @@ def verdict(fit: BeliefFit, name: str) -> str:
     return "recovered" if e.z_belief <= Z_MARGIN else "away from the belief"
 
 
+FIELD_WAVES = 8
+"""Plane waves summed into the smooth error field of :func:`imprecise_moves`."""
+FIELD_WAVELENGTH = (3.0, 8.0)
+"""Their wavelengths are drawn uniformly between these (cells): smooth on the scale of a step."""
+
+
+def imprecise_moves(q: Queries, precision: float, key: jax.Array) -> Queries:
+    """The queries as a learner sees them whose predicted move mean errs by a smooth field of RMS
+    ``precision`` cells: every move's next position shifted by −δ(s) (so the learner's density of it
+    is its own density at a mean shifted by +δ(s)); stays, the answers and the reward's inputs unchanged.
+
+    δ(s) is a sum of :data:`FIELD_WAVES` plane waves of random direction, wavelength and phase per axis,
+    scaled so that E|δ|² = precision² over uniformly spread positions. A learned dynamics model errs
+    smoothly, not independently per step; this is the learner the design check's fit then assumes.
+    """
+    if precision <= 0:
+        return q
+    k_dir, k_len, k_phase = jax.random.split(key, 3)
+    angle = jax.random.uniform(k_dir, (FIELD_WAVES,), minval=0.0, maxval=2 * jnp.pi)
+    length = jax.random.uniform(k_len, (FIELD_WAVES,), minval=FIELD_WAVELENGTH[0], maxval=FIELD_WAVELENGTH[1])
+    freq = (2 * jnp.pi / length)[:, None] * jnp.stack([jnp.cos(angle), jnp.sin(angle)], -1)  # [M, 2]
+    phase = jax.random.uniform(k_phase, (FIELD_WAVES, 2), minval=0.0, maxval=2 * jnp.pi)
+    # per axis a sum of M sines of RMS 1/√2 each, over √M: RMS precision/√2 per axis, precision in all
+    arg = jnp.einsum("...i,mi->...m", q.pos, freq)[..., None] + phase  # [..., M, 2]
+    delta = precision * jnp.sin(arg).sum(-2) / jnp.sqrt(FIELD_WAVES)
+    stay = jnp.all(q.nxt == q.pos, axis=-1, keepdims=True)
+    return q._replace(nxt=jnp.where(stay, q.nxt, q.nxt - delta))
+
+
 def fit_world(
-    world, belief: str | None = None, cfg: DesignConfig = DesignConfig(), *, episodes=64, planned=None, **fit
-) -> BeliefFit:
+    world, belief: str | None = None, cfg: DesignConfig = DesignConfig(), *, episodes=64, planned=None,
+    precision: float = 0.0, **fit,
+) -> BeliefFit:  # fmt: skip
     """:func:`fit_belief` on ``cfg.budget`` queries from the design check's behaviour (its optimal
     and unaware policies, ε-random) in a terrain world, answered by the person of ``belief``.
-    ``planned``: :func:`~.design_check.plan_policies`'s result, when the caller has it."""
+    ``planned``: :func:`~.design_check.plan_policies`'s result, when the caller has it. ``precision``:
+    the learner's move mean errs by a smooth field of this RMS (cells; :func:`imprecise_moves`)."""
     if cfg.teacher.beta is None:
         raise ValueError(NO_SCALE)
     bparams, floor = world.belief(belief), cfg.teacher.log_t_floor
@@ -319,4 +350,5 @@ def fit_world(
     key, beta = jax.random.fold_in(rng.key(cfg.seed), 1), cfg.teacher.beta
     q = simulate_queries(key, world.params, bparams, behaviour, ACTIONS, d.index, cfg.n, beta=beta, budget=cfg.budget,
                          segment=cfg.segment, log_t_floor=floor, episodes=episodes)  # fmt: skip
+    q = imprecise_moves(q, precision, jax.random.fold_in(key, 2))
     return fit_belief(q, world.params, bparams, beta=beta, log_t_floor=floor, **fit)
