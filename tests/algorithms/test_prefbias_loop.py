@@ -211,3 +211,13 @@ def test_config_errors_are_clear():
         prefbias_config(sampler="greedy")
     with pytest.raises(ValueError, match="unknown preset"):
         prefbias_config("tiny")
+
+
+def test_the_noise_disturbance_is_recorded_only_when_on():
+    """Run folders written before ``noise_local`` existed still resume: off, it is not in the record."""
+    from mindgap.algorithms.prefbias_inference import PrefBiasConfig
+
+    off = prefbias_config("fast").as_dict()["prefbias"]
+    assert "noise_local" not in off and "noise_prior_std" not in off and off["stay_local"]
+    on = prefbias_config("fast", prefbias=PrefBiasConfig(noise_local=True, noise_prior_std=0.5)).as_dict()["prefbias"]
+    assert on["noise_local"] and on["noise_prior_std"] == 0.5

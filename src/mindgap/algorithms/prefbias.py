@@ -68,12 +68,15 @@ class PrefBiasLoopConfig(Schedule):
     """Re-initialise the critic after pre-training (as PEBBLE)."""
 
     def as_dict(self) -> dict:
-        """The run record's config; ``prefbias.absorbing`` and ``prefbias.stay_head`` only when on, and
+        """The run record's config; ``prefbias.absorbing``, ``prefbias.stay_head`` and ``prefbias.noise_local``
+        (with its prior) only when on, and
         ``prefbias.absorbing_state`` only when not the default, so run folders from before them still resume."""
         d = super().as_dict()
         for name in ("absorbing", "stay_head"):
             if not getattr(self.prefbias, name):
                 del d["prefbias"][name]
+        if not self.prefbias.noise_local:  # recorded only when on, so run folders from before it still resume
+            del d["prefbias"]["noise_local"], d["prefbias"]["noise_prior_std"]
         if not self.prefbias.absorbing or self.prefbias.absorbing_state == "terminal":
             del d["prefbias"]["absorbing_state"]
         return d

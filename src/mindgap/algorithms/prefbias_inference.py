@@ -124,6 +124,14 @@ class PrefBiasConfig:
     stay head; elsewhere the output column's wide prior stands in). Through the column, a change
     the answers ask for on nav1's ice spreads to the floor and goal beside it, where the answers
     cannot hold it back (docs/experiments/identifiability.md, "The belief posterior")."""
+    noise_local: bool = False
+    """With ``stay_local``: also disturb the raw scale of a move place by place (off by default; measured
+    in docs/experiments/identifiability.md, "The belief posterior")."""
+    noise_prior_std: float = 1.0
+    """With ``noise_local``: the prior's standard deviation of each bump's height in the local disturbance
+    of the move's raw scale (σ = floor + softplus(raw), in units of the displacement's spread), so that a
+    belief that moves are noisier in one place (nav1-v1's ice: 0.2 cells against the truth's 0.05) can be
+    learned while the network's own scale stays pinned by ``belief_prior_std``."""
     random_prior_std: float = 1.0
     """s_φ on every weight with ``belief_prior="random"``: a prior centred on a random network knows
     nothing of the belief, so it is as wide as the reward's (``reward_prior_std``); the narrow scales
@@ -154,7 +162,7 @@ class PrefBiasConfig:
             )
         if self.belief_prior not in BELIEF_PRIORS:
             raise ValueError(f"unknown belief_prior {self.belief_prior!r}: choose from {', '.join(BELIEF_PRIORS)}")
-        for name in ("reward_prior_std", "belief_prior_std", "random_prior_std", "init_std", "lr"):
+        for name in ("reward_prior_std", "belief_prior_std", "noise_prior_std", "random_prior_std", "init_std", "lr"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
         if self.stay_prior_std is not None and not self.stay_prior_std > 0:
@@ -182,8 +190,8 @@ class PrefBiasState(NamedTuple):
 
 
 class FitInfo(NamedTuple):
-    """Last round's negative ELBO per pair (w step), accuracy of the kept posterior mean on all answered
-    pairs, and its negative log-likelihood per held-out pair (NaN without held-out answers)."""
+    """Last round's negative ELBO per pair (w step), accuracy of the kept posterior mean on the answered
+    pairs it trained on, and its negative log-likelihood per held-out pair (NaN without held-out answers)."""
 
     loss: jax.Array
     accuracy: jax.Array
@@ -209,7 +217,7 @@ def prefbias_init(
         net0 = dynamics.params
     else:
         net0 = init_mlp(k_phi, dynamics_sizes(obs_dim, act_dim, cfg.dynamics.hidden, cfg.stay_head))
-    phi0 = belief_weights_init(net0, obs_dim, local_stay(cfg, obs_dim))
+    phi0 = belief_weights_init(net0, obs_dim, local_stay(cfg, obs_dim), cfg.noise_local)
     reward, belief = init_gaussian(w0, cfg.init_std), init_gaussian(phi0, cfg.init_std)
     opt = optax.adam(cfg.lr)
     opt_w, opt_phi = opt.init(ravel_pytree(reward)[0]), opt.init(ravel_pytree(belief)[0])  # see fit
@@ -324,8 +332,13 @@ def belief_prior_scales(belief_mean: Params, obs_dim: int, cfg: PrefBiasConfig) 
     stay = base if cfg.stay_prior_std is None else cfg.stay_prior_std
     net = belief_net(belief_mean)
     scales = jax.tree.map(lambda x: jnp.full_like(x, base), net)
-    if isinstance(belief_mean, BeliefWeights):  # stay_prior_std is per unit of a bump's height in the logit
-        return ravel_pytree(BeliefWeights(scales, jnp.full_like(belief_mean.stay, stay / STAY_GAIN)))[0]
+    if isinstance(belief_mean, BeliefWeights):  # the disturbances' priors are per unit of a bump's height
+        local = BeliefWeights(
+            scales,
+            jnp.full_like(belief_mean.stay, stay / STAY_GAIN),
+            jnp.full_like(belief_mean.noise, cfg.noise_prior_std / STAY_GAIN),
+        )
+        return ravel_pytree(local)[0]
     w, _ = net[-1]
     if cfg.belief_prior == "dynamics" and w.shape[-1] == 2 * obs_dim + 1:
         sw, sb = scales[-1]
@@ -430,7 +443,7 @@ def fit(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: PrefBiasConfi
     ((flat_w, flat_phi), (opt_w, opt_phi)) = carry
     state = state._replace(reward=unravel_w(flat_w), belief=unravel_phi(flat_phi), opt_w=opt_w, opt_phi=opt_phi)
     p = preference_prob(state.reward.mean, state.belief.mean, state.norm, data.seg_a, data.seg_b, cfg, state.log_unit)
-    seen = jnp.arange(capacity) < data.count
+    trained = (jnp.arange(capacity) < data.count) & ~held
     hit = ((p > 0.5) == (data.label > 0.5)) | (data.label == 0.5)
     held_nll_out = jnp.where(n_held > 0, best_nll, jnp.nan)
-    return state, FitInfo(losses_w[-1], jnp.sum(hit & seen) / jnp.maximum(data.count, 1), held_nll_out)
+    return state, FitInfo(losses_w[-1], jnp.sum(hit & trained) / n, held_nll_out)

@@ -18,11 +18,12 @@
   deviation of a Gaussian on the next state's displacement, read through f_ψ's
   normalisation. Because the architectures match, ψ can be the centre of the prior p(φ).
 
-**Local stay disturbance** (``PrefBiasConfig.stay_local``, worlds of at most three observation
+**Local disturbances** (``PrefBiasConfig.stay_local``, worlds of at most three observation
 dimensions): f_φ's weights are then :class:`BeliefWeights`, the MLP and the weights of radial
-basis bumps over the observation (:func:`stay_features`) added to the stay logit. The belief is
-f_ψ's network plus a disturbance of how often the robot fails to move, place by place; its prior
-is centred on 0, so f_φ starts at f_ψ exactly.
+basis bumps over the observation (:func:`stay_features`) added to the stay logit and to the raw
+scale of a move. The belief is f_ψ's network plus a disturbance of how often the robot fails to
+move and of how noisy a move is, place by place; their prior is centred on 0, so f_φ starts at
+f_ψ exactly.
 
 A Gaussian cannot hold the point mass of a stuck or bumped step that the terrain worlds
 have; the scale floor (``min_std``) keeps the density of such steps finite. With
@@ -54,7 +55,7 @@ import jax
 import jax.numpy as jnp
 
 from .bayes import Gaussian, sample_params
-from .gaussian_dynamics import DynamicsModel, Norm, has_stay_head, next_state_log_prob, normalise_input, predict
+from .gaussian_dynamics import Norm, gaussian_head, has_stay_head, next_state_log_prob, normalise_input
 from .mlp import Params, init_mlp, mlp
 from .reward_ensemble import RBF_GAIN, absorbing_features, rbf_count, soft_bound
 
@@ -118,17 +119,21 @@ def posterior_reward(params, obs: jax.Array, act: jax.Array, next_obs: jax.Array
 
 
 class BeliefWeights(NamedTuple):
-    """The weights of f_φ with a local stay disturbance: ``net`` the MLP's layers (f_ψ's architecture),
-    ``stay [M]`` the weights of :func:`stay_features`, added to the stay logit."""
+    """The weights of f_φ with local disturbances: ``net`` the MLP's layers (f_ψ's architecture),
+    ``stay [M]`` the weights of :func:`stay_features` added to the stay logit, ``noise [M]`` those
+    added to the raw scale of every axis (how noisy a move looks, place by place; [0]: none)."""
 
     net: Params
     stay: jax.Array
+    noise: jax.Array
 
 
-def belief_weights_init(net: Params, obs_dim: int, local: bool):
-    """f_φ's weights from an MLP of f_ψ's architecture; with ``local`` a stay disturbance of zeros
-    (f_φ = the MLP exactly), else the MLP's parameters alone."""
-    return BeliefWeights(net, jnp.zeros(rbf_count(obs_dim))) if local else net
+def belief_weights_init(net: Params, obs_dim: int, local: bool, noise: bool = False):
+    """f_φ's weights from an MLP of f_ψ's architecture; with ``local`` a stay disturbance of zeros, and
+    with ``noise`` also a noise disturbance of zeros (empty without: f_φ = the MLP exactly either way);
+    without ``local`` the MLP's parameters alone."""
+    m = rbf_count(obs_dim)
+    return BeliefWeights(net, jnp.zeros(m), jnp.zeros(m if noise else 0)) if local else net
 
 
 def belief_net(params) -> Params:
@@ -157,16 +162,19 @@ def stay_features(obs: jax.Array, m: int) -> jax.Array:
 
 
 def _raw(params, norm: Norm, obs, act) -> jax.Array:
-    """f_φ's output: the MLP's, its stay logit moved by the local disturbance when there is one."""
+    """f_φ's output: the MLP's, its stay logit and raw scales moved by the local disturbances when it has them."""
     raw = mlp(belief_net(params), normalise_input(norm, obs, act))
     if isinstance(params, BeliefWeights):
-        raw = raw.at[..., -1].add(stay_features(obs, params.stay.shape[-1]) @ params.stay)
+        d, phi = obs.shape[-1], stay_features(obs, params.stay.shape[-1])
+        if params.noise.shape[-1]:  # static: an empty noise disturbance is none
+            raw = raw.at[..., d : 2 * d].add((phi @ params.noise)[..., None])
+        raw = raw.at[..., -1].add(phi @ params.stay)
     return raw
 
 
 def belief_predict(params, norm: Norm, obs: jax.Array, act: jax.Array, min_std: float):
     """Mean and standard deviation of the next state (of a move) under f_φ with fixed weights: ([..., d], [..., d])."""
-    return predict(DynamicsModel(belief_net(params), norm), obs, act, min_std)
+    return gaussian_head(_raw(params, norm, obs, act), norm, obs, min_std)
 
 
 def belief_log_prob(params, norm: Norm, obs, act, next_obs, min_std: float, log_unit=0.0) -> jax.Array:
