@@ -120,7 +120,7 @@ def hidden(html: str, name: str) -> str:
 
 
 def form_action(html: str) -> str:
-    m = re.search(r'<form method="post" action="/p/[^/"]+/(\w+)"', html)
+    m = re.search(r'<form method="post" action="(?:/[^/"]+)*/p/[^/"]+/(\w+)"', html)
     return m.group(1) if m else ""
 
 
@@ -131,11 +131,13 @@ class Participant:
     for every answer the server acknowledged (a 303 after the answer was stored);
     ``statuses`` every response's status code. With ``double_submit`` each answer form is
     sent twice at once (a double click, or a retried request, racing the first), the
-    second copy from ``second`` (another connection), when given.
+    second copy from ``second`` (another connection), when given. ``prefix`` is the path the
+    study is served under (``/lab`` behind a proxy).
     """
 
-    def __init__(self, http, token: str, rate, double_submit: bool = False, second=None):
+    def __init__(self, http, token: str, rate, double_submit: bool = False, second=None, prefix: str = ""):
         self.http, self.token, self.rate, self.double = http, token, rate, double_submit
+        self.prefix = prefix
         self.second = second or http
         self.acked: dict[str, tuple[float, str]] = {}
         self.statuses: list[int] = []
@@ -144,14 +146,14 @@ class Participant:
 
     def get(self) -> str:
         self.requests += 1
-        r = self.http.get(f"/p/{self.token}")
+        r = self.http.get(f"{self.prefix}/p/{self.token}")
         self.statuses.append(r.status_code)
         assert r.status_code == 200, (r.status_code, r.text[:500])
         return r.text
 
     def post(self, what: str, data: dict, http=None):
         self.requests += 1
-        r = (http or self.http).post(f"/p/{self.token}/{what}", data=data, follow_redirects=False)
+        r = (http or self.http).post(f"{self.prefix}/p/{self.token}/{what}", data=data, follow_redirects=False)
         self.statuses.append(r.status_code)
         return r
 

@@ -207,13 +207,13 @@ def test_a_refused_consent_or_questionnaire_redirects_back_and_keeps_the_answers
     r = client.post(f"/p/{token}/questionnaire", data={"csrf": hidden(page, "csrf"), "q1": "4"}, follow_redirects=False)
     assert r.status_code == 303 and r.headers["x-answer"] == "refused"
     page = client.get(r.headers["location"]).text
-    assert "Please answer every question (q2: choose" in page
+    assert "Please answer every question (question 2: choose" in page  # its place, not the id
     assert re.search(r'name="q1" value="4" required checked', page)
     assert not re.search(r'name="q2" value="\d" required checked', page)
     assert store.questionnaire() == []
     # an answer off the scale is no answer
     r = client.post(f"/p/{token}/questionnaire", data={"csrf": hidden(page, "csrf"), "q1": "4", "q2": "99"})
-    assert "Please answer every question (q2: choose" in r.text and store.questionnaire() == []
+    assert "Please answer every question (question 2: choose" in r.text and store.questionnaire() == []
     r = client.post(f"/p/{token}/questionnaire", data={"csrf": hidden(page, "csrf"), "q1": "4", "q2": "2"})
     assert {q["question"]: q["value"] for q in store.questionnaire()} == {"q1": 4, "q2": 2}
 

@@ -1,5 +1,9 @@
 """Study files: the examples parse and build; malformed files are refused with the key named."""
 
+import dataclasses
+import hashlib
+import json
+
 import pytest
 from study_helpers import EXAMPLES
 
@@ -50,6 +54,8 @@ def test_coffee_example_is_the_dissertation_study():
         ({"rating": {"min": 5, "max": 1}}, "rating needs min < max"),
         ({"colour": "red"}, "unknown key(s) colour"),
         ({"protocol": "preference"}, "domain coffee shows demonstrations to rate"),
+        ({"min_live_answers": 3}, "min_live_answers belongs to a live study"),
+        ({"waiting": "Wait."}, "waiting belongs to a live study"),
     ],
 )
 def test_malformed_study_files_name_the_problem(change, message):
@@ -96,3 +102,21 @@ def test_serve_binds_this_machine_only_by_default():
 
     args = _parser().parse_args(["study", "serve", "--config", "x.yaml"])
     assert args.host == "127.0.0.1"
+
+
+def test_the_live_keys_are_read_and_leave_older_studies_fingerprints_alone():
+    live = {**MINIMAL, "protocol": "preference", "domain": {"name": "terrain", "world": "nav1"}}
+    live["items"] = {"source": "live"}
+    plain = parse_study(live)
+    assert (plain.min_live_answers, plain.waiting) == (0, "")
+    assert plain.waiting_text.startswith("The robot is still learning")
+    keyed = parse_study({**live, "min_live_answers": 5, "waiting": "One moment."})
+    assert (keyed.min_live_answers, keyed.waiting_text) == (5, "One moment.")
+    assert keyed.fingerprint() != plain.fingerprint()
+    # a store made before these keys existed hashed the study without them
+    before = dataclasses.asdict(plain)
+    for key in ("base_dir", "waiting", "min_live_answers"):
+        before.pop(key)
+    assert plain.fingerprint() == hashlib.sha256(json.dumps(before, sort_keys=True).encode()).hexdigest()[:16]
+    with pytest.raises(StudyFileError, match="min_live_answers must be at least 0"):
+        parse_study({**live, "min_live_answers": -1})

@@ -25,6 +25,11 @@ What is ours is the study logic:
   page says why and keeps the chosen value, so Back and reload never resend the form. A
   consent form without a choice and a questionnaire with a question unanswered are
   refused the same way, the answers given kept.
+* **Live queries** gone while their page was open (withdrawn by the run, or answered by
+  someone who was given it after its lease ran out) redirect to the participant's current
+  page with a one-line notice (``?notice=closed|taken``), never to an error page.
+* **Behind a proxy**: every address a page or redirect names starts with the public URL's
+  path (``/lab``), and requests under that path are served too.
 """
 
 from __future__ import annotations
@@ -36,9 +41,8 @@ import re
 import secrets
 import statistics
 import time
-from decimal import Decimal
 from importlib import resources
-from urllib.parse import parse_qsl, urlencode, urlsplit
+from urllib.parse import urlencode, urlsplit
 
 from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
@@ -50,77 +54,21 @@ from . import export
 from .config import Study
 from .render import Renderer
 from .store import LIVE_PREFIX, Store
+from .web import HTTPError, StripPrefix, likert, paragraphs, parse_rating, public_base, read_form, same_token
 
 _SUBMISSION = re.compile(r"^[A-Za-z0-9_-]{8,64}$")
-MAX_FORM = 64 * 1024  # bytes: the largest form a page sends is well under 1 KiB
-_PLAIN = re.compile(r"-?[0-9]{1,9}(\.[0-9]{1,9})?")
 COOKIE = "mindgap_admin"
 CHOICES = {"a": "A", "b": "B", "equal": "can't tell"}
+NOTICES = {
+    "closed": "That question was withdrawn before your answer arrived, so it was not recorded.",
+    "taken": "Someone else answered that question first, so your answer was not recorded.",
+    "more": "Please answer at least {n} questions before you finish.",
+}
+"""The one-line notices of a participant's page (``?notice=KEY``), each about their last form."""
 CSP = (
     "default-src 'none'; img-src 'self'; style-src 'self'; script-src 'self'; form-action 'self'; "
     "frame-ancestors 'none'; base-uri 'none'"
 )
-
-
-class HTTPError(Exception):
-    def __init__(self, status: int, title: str, text: str):
-        self.status, self.title, self.text = status, title, text
-
-
-async def read_form(request: Request) -> dict[str, str]:
-    """The URL-encoded form of a POST, refused (413) when it is over :data:`MAX_FORM` bytes.
-
-    A larger ``Content-Length`` is refused before any of the body is read, and a body
-    without one (chunked) is read only up to the limit.
-    """
-    too_large = HTTPError(413, "Form too large", f"A study form is at most {MAX_FORM // 1024} KiB.")
-    length = request.headers.get("content-length")
-    if length is not None and (not length.isdigit() or int(length) > MAX_FORM):
-        raise too_large
-    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if kind != "application/x-www-form-urlencoded":
-        raise HTTPError(415, "Not a form", "Answers are sent by the study page's forms.")
-    body = bytearray()
-    async for chunk in request.stream():
-        body += chunk
-        if len(body) > MAX_FORM:
-            raise too_large
-    try:
-        return dict(parse_qsl(body.decode("utf-8"), keep_blank_values=True, max_num_fields=100))
-    except (UnicodeDecodeError, ValueError):
-        raise HTTPError(400, "Bad form", "This form could not be read. Please reload the page.") from None
-
-
-def parse_rating(raw: str, lo: float, hi: float, step: float) -> float | None:
-    """A rating written as a plain decimal in ``[lo, hi]`` on the grid ``lo + k·step``; None otherwise.
-
-    Exact (decimal) arithmetic, so 6.5 is on a 0.5 grid and 0.3 on a 0.1 grid; ``1e1``,
-    ``nan``, ``+6`` and other spellings a slider never sends are refused.
-    """
-    if not _PLAIN.fullmatch(raw):
-        return None
-    v = Decimal(raw)
-    d_lo, d_hi, d_step = (Decimal(repr(float(x))) for x in (lo, hi, step))
-    if not d_lo <= v <= d_hi or (v - d_lo) % d_step != 0:
-        return None
-    return float(v)
-
-
-def paragraphs(text: str) -> list[str]:
-    """Blank-line-separated paragraphs of a study text (escaped by the template)."""
-    return [p.strip() for p in re.split(r"\n\s*\n", text or "") if p.strip()]
-
-
-def public_base(url: str) -> str:
-    """A server's public address (``https://host[:port][/path]``) without its trailing slash.
-
-    Raises:
-        ValueError: not an http(s) address with a host, or one with a query or fragment.
-    """
-    parts = urlsplit(url)
-    if parts.scheme not in ("http", "https") or not parts.hostname or parts.query or parts.fragment:
-        raise ValueError(f"the public address must look like https://study.example.org[/path], got {url!r}")
-    return url.rstrip("/")
 
 
 def create_app(
@@ -134,14 +82,20 @@ def create_app(
     """The app for one study and its store (the store must be bound to the study).
 
     ``public_url`` is the server's address as participants reach it: the dashboard's
-    links are built from it, never from a request's ``Host`` header.
+    links are built from it, never from a request's ``Host`` header, and every address
+    the pages and redirects name starts with its path (``/lab`` for ``https://host/lab``),
+    so the app works behind a reverse proxy at that path.
     """
     public = public_base(public_url)
+    root = urlsplit(public).path  # "" or "/lab": the prefix of every address the app emits
+    public_host = urlsplit(public).netloc
     pkg = resources.files("mindgap.study")
     templates = Jinja2Templates(directory=str(pkg / "templates"))
     templates.env.filters["paragraphs"] = paragraphs
     app = FastAPI(title=f"mindgap study {study.name}", docs_url=None, redoc_url=None, openapi_url=None)
     app.mount("/static", StaticFiles(directory=str(pkg / "static")), name="static")
+    if root:
+        app.add_middleware(StripPrefix, prefix=root)
     secret = store.meta("secret").encode()
     items = {it["id"]: it for it in store.items()}
     lo, hi, step = study.rating_scale
@@ -151,6 +105,7 @@ def create_app(
 
     def page(request: Request, name: str, status: int = 200, **ctx) -> Response:
         ctx.setdefault("study", study)
+        ctx.setdefault("root", root)
         return templates.TemplateResponse(request, name, ctx, status_code=status)
 
     @app.exception_handler(HTTPError)
@@ -162,8 +117,10 @@ def create_app(
         if request.method == "POST":
             origin = request.headers.get("origin")
             if request.headers.get("sec-fetch-site") == "cross-site" or (
-                origin and origin != "null" and urlsplit(origin).netloc != request.headers.get("host")
-            ):
+                origin
+                and origin != "null"
+                and urlsplit(origin).netloc not in (request.headers.get("host"), public_host)
+            ):  # behind a proxy the Host header may name the upstream, the Origin the public URL
                 return PlainTextResponse("cross-site form posts are refused", status_code=403)
         response = await call_next(request)
         response.headers.setdefault("Content-Security-Policy", CSP)
@@ -182,7 +139,7 @@ def create_app(
         return p
 
     def check_csrf(form, token: str) -> None:
-        if not hmac.compare_digest(str(form.get("csrf", "")), csrf("p:" + token)):
+        if not same_token(str(form.get("csrf", "")), csrf("p:" + token)):
             raise HTTPError(403, "Form expired", "This form was not sent from your study page. Please reload the page.")
 
     def stage(p) -> str:
@@ -214,7 +171,8 @@ def create_app(
                 q = store.live_query(int(item_id[len(LIVE_PREFIX) :]))
             except ValueError:
                 q = None
-            if q is not None and q["claimed_by"] == p["id"]:
+            # shown to them once, it stays theirs to answer even when its lease passed to another
+            if q is not None and (q["claimed_by"] == p["id"] or store.shown_at(p["id"], item_id) is not None):
                 return {"id": item_id, "kind": "pair", "data": json.loads(q["data"])}
         elif item_id in json.loads(p["item_order"]):
             return items[item_id]
@@ -229,11 +187,14 @@ def create_app(
             "too-fast": f"Please take at least {study.min_seconds:g} seconds to look at each item.",
         }[code]
 
-    def show(request: Request, p, status: int = 200, error: str = "", kept: dict | None = None) -> Response:
-        """The participant's current page; ``kept`` is a refused answer to show again (code, item, value)."""
+    def show(
+        request: Request, p, status: int = 200, error: str = "", kept: dict | None = None, notice: str = ""
+    ) -> Response:
+        """The participant's current page; ``kept`` is a refused answer to show again (code, item, value),
+        ``notice`` one line about what happened to their last form (a withdrawn question)."""
         s = stage(p)
         token = p["token"]
-        ctx = dict(token=token, csrf=csrf("p:" + token), error=error)
+        ctx = dict(token=token, csrf=csrf("p:" + token), error=error, notice=notice)
         if s in ("declined", "consent", "instructions", "questionnaire"):
             if kept and kept["code"] == s:  # a refused consent or questionnaire: why, and the answers given
                 ctx["error"] = kept["error"]
@@ -244,7 +205,9 @@ def create_app(
         item_id = current_item(p)
         if item_id is None:
             if study.live:
-                return page(request, "wait.html", status, answered=len(store.answered_ids(p["id"])), **ctx)
+                done = store.answered_ids(p["id"])
+                live = sum(i.startswith(LIVE_PREFIX) for i in done)
+                return page(request, "wait.html", status, answered=len(done), live=live, **ctx)
             store.mark(p["id"], "completed")
             return show(request, store.participant(token), status)
         item = item_of(p, item_id)
@@ -252,7 +215,7 @@ def create_app(
         wait = max(0.0, study.min_seconds - (time.time() - shown))
         order = json.loads(p["item_order"])
         rating = chosen = None
-        if kept and kept["item"] == item_id:  # the refused answer to this very item: its message and value
+        if kept and kept.get("item") == item_id:  # the refused answer to this very item: its message and value
             ctx["error"] = refusal(kept["code"])
             value = parse_rating(kept.get("rating") or "", lo, hi, step)
             rating = None if value is None else f"{value:g}"
@@ -284,17 +247,15 @@ def create_app(
         elif q.get("refused") == "consent":
             kept = {"code": "consent", "error": "Please say whether you agree to take part.", "given": {}}
         elif q.get("refused") == "questionnaire":
-            given = {}
-            for question in study.questionnaire:
-                v = q.get(question.id, "")
-                if v.isdigit() and question.scale[0] <= int(v) <= question.scale[1]:
-                    given[question.id] = int(v)
-            first = next((x for x in study.questionnaire if x.id not in given), None)
+            given = {x.id: v for x in study.questionnaire if (v := likert(q.get(x.id, ""), x.scale)) is not None}
+            first = next((k for k, x in enumerate(study.questionnaire) if x.id not in given), None)
             error = "Please answer every question."
-            if first is not None:
-                error = f"Please answer every question ({first.id}: choose {first.scale[0]}–{first.scale[1]})."
+            if first is not None:  # named by its place on the page: its id is the researcher's label
+                lo_, hi_ = study.questionnaire[first].scale
+                error = f"Please answer every question (question {first + 1}: choose {lo_}–{hi_})."
             kept = {"code": "questionnaire", "error": error, "given": given}
-        return show(request, who(token), kept=kept)
+        notice = NOTICES.get(q.get("notice", ""), "").format(n=study.min_live_answers)
+        return show(request, who(token), kept=kept, notice=notice)
 
     async def form_of(request: Request, token: str):
         """The participant (404 for an unknown link, before the body is read) and their checked form."""
@@ -303,8 +264,9 @@ def create_app(
         check_csrf(form, token)
         return form, p
 
-    def back(token: str, outcome: str = "") -> Response:
-        r = RedirectResponse(f"/p/{token}", status_code=303)
+    def back(token: str, outcome: str = "", notice: str = "") -> Response:
+        """Post/redirect/get to the participant's current page, with a one-line ``notice`` (a key of NOTICES)."""
+        r = RedirectResponse(f"{root}/p/{token}" + (f"?notice={notice}" if notice else ""), status_code=303)
         if outcome:
             r.headers["X-Answer"] = outcome
         return r
@@ -312,13 +274,13 @@ def create_app(
     def refuse(token: str, item_id: str, code: str, **value: str) -> Response:
         """Post/redirect/get for a refused answer: back to the item, whose page says why and keeps the value."""
         query = urlencode({"item": item_id, "refused": code, **{k: v for k, v in value.items() if v}})
-        r = RedirectResponse(f"/p/{token}?{query}", status_code=303)
+        r = RedirectResponse(f"{root}/p/{token}?{query}", status_code=303)
         r.headers["X-Answer"] = "refused"
         return r
 
     def refused_page(token: str, code: str, **given: str) -> Response:
         """Post/redirect/get for a refused consent or questionnaire form: its page again, saying why."""
-        r = RedirectResponse(f"/p/{token}?{urlencode({'refused': code, **given})}", status_code=303)
+        r = RedirectResponse(f"{root}/p/{token}?{urlencode({'refused': code, **given})}", status_code=303)
         r.headers["X-Answer"] = "refused"
         return r
 
@@ -346,11 +308,7 @@ def create_app(
         form, p = await form_of(request, token)
         if stage(p) != "questionnaire":
             return back(token)
-        answers = {}
-        for q in study.questionnaire:
-            raw = str(form.get(q.id, ""))
-            if raw.isdigit() and q.scale[0] <= int(raw) <= q.scale[1]:
-                answers[q.id] = int(raw)
+        answers = {q.id: v for q in study.questionnaire if (v := likert(str(form.get(q.id, "")), q.scale)) is not None}
         if len(answers) < len(study.questionnaire):  # post/redirect/get, keeping the answers given
             return refused_page(token, "questionnaire", **{k: str(v) for k, v in answers.items()})
         await run_in_threadpool(store.save_questionnaire, p["id"], answers)
@@ -364,8 +322,8 @@ def create_app(
     def _answer(request: Request, p, form) -> Response:
         token = p["token"]
         if stage(p) != "items":
-            if stage(p) == "done":
-                return back(token, "answered")
+            if stage(p) in ("done", "declined"):  # e.g. a form left open in another tab
+                return back(token, "answered" if stage(p) == "done" else "")
             raise HTTPError(409, "Not yet", "Please finish the consent form, instructions and questionnaire first.")
         submission = str(form.get("submission_id", ""))
         if not _SUBMISSION.match(submission):
@@ -397,12 +355,8 @@ def create_app(
             return refuse(token, item_id, "too-fast", rating=form.get("rating", ""), choice=choice or "")
         if outcome == "conflict":
             raise HTTPError(409, "Bad form", "This form was already used for another answer. Please reload the page.")
-        if outcome == "closed":
-            raise HTTPError(
-                410,
-                "Question withdrawn",
-                "The robot stopped waiting for this answer. Reload your study page for the next one.",
-            )
+        if outcome in ("closed", "taken"):  # a live query gone meanwhile: on to the next page, saying so
+            return back(token, outcome, notice=outcome)
         if outcome == "not-yours":
             raise HTTPError(404, "Unknown item", f"There is no item {item_id!r} in your study.")
         return back(token, outcome)
@@ -411,6 +365,9 @@ def create_app(
     async def finish(request: Request, token: str):
         _, p = await form_of(request, token)
         if stage(p) == "items" and study.live:
+            done = await run_in_threadpool(store.answered_ids, p["id"])
+            if sum(i.startswith(LIVE_PREFIX) for i in done) < study.min_live_answers:
+                return back(token, "refused", notice="more")
             await run_in_threadpool(store.mark, p["id"], "completed")
         return back(token)
 
@@ -429,7 +386,7 @@ def create_app(
     def is_admin(request: Request) -> bool:
         given = request.headers.get("authorization", "").removeprefix("Bearer ").strip()
         given = given or request.cookies.get(COOKIE, "") or request.query_params.get("token", "")
-        return bool(given) and hmac.compare_digest(given, admin_token)
+        return bool(given) and same_token(given, admin_token)
 
     def require_admin(request: Request) -> None:
         if not is_admin(request):
@@ -439,8 +396,8 @@ def create_app(
     def dashboard(request: Request):
         require_admin(request)
         if "token" in request.query_params:  # keep the token out of the address bar and history
-            r = RedirectResponse("/admin", status_code=303)
-            r.set_cookie(COOKIE, admin_token, httponly=True, samesite="strict")
+            r = RedirectResponse(f"{root}/admin", status_code=303)
+            r.set_cookie(COOKIE, admin_token, httponly=True, samesite="strict", secure=public.startswith("https:"))
             return r
         return page(request, "admin.html", **dashboard_data())
 
@@ -455,6 +412,7 @@ def create_app(
         people = []
         for p in store.participants():
             mine = by_person.get(p["label"], [])
+            live = sum(a["item_id"].startswith(LIVE_PREFIX) for a in mine)
             secs = [a["seconds"] for a in mine if a["seconds"] is not None]
             people.append(
                 dict(
@@ -462,8 +420,9 @@ def create_app(
                     link=f"{public}/p/{p['token']}",
                     condition=p["condition"],
                     stage=stage(p),
-                    answered=len(mine),
+                    answered=len(mine),  # fixed items and live queries: fixed ones of total, and live ones
                     total=len(json.loads(p["item_order"])) or None,
+                    live_answered=live,
                     failed=failed.get(p["label"], []),
                     median_seconds=statistics.median(secs) if secs else None,
                     code=p["completion_code"] if p["completed_at"] else "",
@@ -530,7 +489,7 @@ def create_app(
     async def add_participants(request: Request):
         require_admin(request)
         form = await read_form(request)
-        if not hmac.compare_digest(str(form.get("csrf", "")), csrf("admin")):
+        if not same_token(str(form.get("csrf", "")), csrf("admin")):
             raise HTTPError(403, "Form expired", "This form was not sent from the dashboard. Please reload it.")
         try:
             n = int(str(form.get("count", "")))
@@ -539,6 +498,6 @@ def create_app(
         if not 1 <= n <= 1000:
             raise HTTPError(422, "Bad count", "Add between 1 and 1000 participants at a time.")
         await run_in_threadpool(store.add_participants, study, n)
-        return RedirectResponse("/admin", status_code=303)
+        return RedirectResponse(f"{root}/admin", status_code=303)
 
     return app

@@ -91,6 +91,8 @@ class Study:
     sanity: tuple[Sanity, ...] = ()
     rating_scale: tuple[float, float, float] = (0.0, 10.0, 1.0)
     base_dir: str = "."
+    waiting: str = ""
+    min_live_answers: int = 0
 
     @property
     def comparison(self) -> bool:
@@ -99,6 +101,11 @@ class Study:
     @property
     def live(self) -> bool:
         return self.items.get("source") == "live"
+
+    @property
+    def waiting_text(self) -> str:
+        """What the waiting page of a live study says: the study's ``waiting`` text or its domain's."""
+        return self.waiting or WAITING.get(self.domain["name"], WAITING["terrain"])
 
     def conditions(self) -> tuple[str, ...]:
         """The between-participant conditions (coffee: the robot types); one empty condition otherwise."""
@@ -110,9 +117,16 @@ class Study:
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
 
     def fingerprint(self) -> str:
-        """Hash of everything that defines the study (not its base folder)."""
+        """Hash of everything that defines the study (not its base folder).
+
+        Keys added since stores were first written count only when set, so a store made
+        before them still opens with its study file.
+        """
         d = dataclasses.asdict(self)
         d.pop("base_dir")
+        for key in _ADDED:
+            if d[key] == _ADDED[key]:
+                d.pop(key)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -121,6 +135,14 @@ DEFAULT_QUESTION = {
     "preference": "Which of the two behaviours do you prefer?",
     "expectation": "Which of the two behaviours did you expect the robot to show?",
 }
+
+WAITING = {
+    "terrain": "The robot is still learning; a new pair of its behaviours will appear here in a moment.",
+    "gym": "The robot is still learning; a new pair of clips of it will appear here in a moment.",
+    "driving": "The next pair of clips of your car will appear here in a moment.",
+}
+"""The waiting page's default text in a live study, by domain (a study file's ``waiting`` replaces it)."""
+_ADDED = {"waiting": "", "min_live_answers": 0}
 
 
 def load_study(path) -> Study:
@@ -223,11 +245,16 @@ def parse_study(raw, source: str = "study", base_dir: str = ".") -> Study:
         if not scale[0] < scale[1] or scale[2] <= 0:
             fail("rating needs min < max and step > 0")
     texts = {}
-    for key in ("title", "consent", "instructions", "question"):
+    min_live = _int(raw.get("min_live_answers", 0), "min_live_answers", fail, lo=0)
+    if min_live and items["source"] != "live":
+        fail("min_live_answers belongs to a live study (items: {source: live})")
+    for key in ("title", "consent", "instructions", "question", "waiting"):
         v = raw.get(key, "")
         if not isinstance(v, str):
             fail(f"{key} must be text")
         texts[key] = v.strip()
+    if texts["waiting"] and items["source"] != "live":
+        fail("waiting belongs to a live study (items: {source: live}): it is the text shown while no query waits")
     shuffle = raw.get("shuffle", True)
     if not isinstance(shuffle, bool):
         fail("shuffle must be true or false")
@@ -247,6 +274,8 @@ def parse_study(raw, source: str = "study", base_dir: str = ".") -> Study:
         sanity=sanity,
         rating_scale=scale,
         base_dir=base_dir,
+        waiting=texts["waiting"],
+        min_live_answers=min_live,
     )
 
 

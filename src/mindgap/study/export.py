@@ -11,7 +11,9 @@
   condition and sanity verdict, and the questionnaire (the raw record).
 
 By default only participants who finished the study are exported to the fitting
-files (``partial=True`` takes everyone); the raw record always has everyone.
+files (``partial=True`` takes everyone); the raw record always has everyone. A participant
+who declined (possibly after answering, from another tab) has withdrawn: their answers and
+questionnaire are in no export.
 """
 
 from __future__ import annotations
@@ -55,8 +57,19 @@ def _context(store: Store, partial: bool):
     study = store.study_json()
     items = {it["id"]: it for it in store.items()}
     people = {p["label"]: p for p in store.participants()}
-    answers = [a for a in store.answers() if partial or people[a["participant"]]["completed_at"] is not None]
+    answers = [
+        a
+        for a in store.answers()
+        if people[a["participant"]]["declined_at"] is None
+        and (partial or people[a["participant"]]["completed_at"] is not None)
+    ]
     return study, items, people, answers
+
+
+def _questionnaire(store: Store) -> list:
+    """The questionnaire answers of participants who did not decline."""
+    declined = {p["id"] for p in store.participants() if p["declined_at"] is not None}
+    return [row for row in store.questionnaire() if row["participant_id"] not in declined]
 
 
 def ratings_csv(store: Store, partial: bool = False) -> str:
@@ -69,7 +82,7 @@ def ratings_csv(store: Store, partial: bool = False) -> str:
     coffee = study["domain"]["name"] == "coffee"
     questions = [q["id"] for q in study["questionnaire"]]
     by_pid: dict[int, dict[str, int]] = {}
-    for row in store.questionnaire():
+    for row in _questionnaire(store):
         by_pid.setdefault(row["participant_id"], {})[row["question"]] = row["value"]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -187,7 +200,7 @@ def answers_json(store: Store) -> str:
     """The raw record: study, participants (stage times, questionnaire), answers."""
     study = store.study_json()
     quest: dict[int, dict] = {}
-    for row in store.questionnaire():
+    for row in _questionnaire(store):
         quest.setdefault(row["participant_id"], {})[row["question"]] = row["value"]
     people = [
         {

@@ -336,8 +336,9 @@ class Store:
             (the item already has an earlier answer, which stands) or ``conflict`` (the
             submission id was used for another item or participant); refused without a
             write: ``out-of-order``, ``not-shown`` (never shown to this participant) or
-            ``too-fast``. For a live query also ``closed`` (the run stopped waiting) or
-            ``not-yours`` (claimed by someone else).
+            ``too-fast``. For a live query also ``closed`` (the run stopped waiting), ``taken``
+            (someone else answered it first) or ``not-yours`` (never shown to this participant;
+            one shown to them stays theirs to answer after its lease passed to another).
         """
         now = time.time()
         with self.write() as c:
@@ -351,17 +352,17 @@ class Store:
                 return "answered"
             if order is not None and item_id != next((i for i in order if i not in answered), None):
                 return "out-of-order"
+            shown = c.execute(
+                "SELECT first_shown FROM views WHERE participant_id = ? AND item_id = ?", (pid, item_id)
+            ).fetchone()
             if item_id.startswith(LIVE_PREFIX):
                 q = c.execute(
                     "SELECT status, claimed_by FROM live_queries WHERE id = ?", (int(item_id[len(LIVE_PREFIX) :]),)
                 ).fetchone()
-                if q is None or q["claimed_by"] != pid:
+                if q is None or (q["claimed_by"] != pid and shown is None):
                     return "not-yours"
                 if q["status"] != "open":
-                    return "closed" if q["status"] == "expired" else "answered"
-            shown = c.execute(
-                "SELECT first_shown FROM views WHERE participant_id = ? AND item_id = ?", (pid, item_id)
-            ).fetchone()
+                    return "closed" if q["status"] == "expired" else "taken"
             if min_seconds is not None:
                 if shown is None:
                     return "not-shown"
@@ -450,12 +451,13 @@ class Store:
             c.execute("UPDATE live_batches SET closed_at = ? WHERE id = ?", (time.time(), batch))
 
     def batch_answers(self, batch: int) -> dict[int, str]:
-        """``{query index: choice}`` of a batch's answered queries."""
+        """``{query index: choice}`` of a batch's answered queries (not those of a participant who declined)."""
         rows = (
             self.conn()
             .execute(
                 "SELECT q.idx, a.choice FROM live_queries q JOIN answers a ON a.item_id = ? || q.id"
-                " WHERE q.batch_id = ? AND q.status = 'answered'",
+                " JOIN participants p ON p.id = a.participant_id"
+                " WHERE q.batch_id = ? AND q.status = 'answered' AND p.declined_at IS NULL",
                 (LIVE_PREFIX, batch),
             )
             .fetchall()
