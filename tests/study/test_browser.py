@@ -203,6 +203,9 @@ def test_screenshots_of_comparison_pages(browser, tmp_path):
             page.wait_for_function("[...document.querySelectorAll('main img')].every(i => i.complete)")
             page.check("#choice-a")
             _shot(page, f"6-{example}-item")
+            page.set_viewport_size(PHONE)
+            _fits(page)
+            _shot(page, f"7-phone-{example}-item")
             page.close()
         finally:
             server.stop()
@@ -262,6 +265,14 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
             if item == "bias":
                 assert "How will your car brake?" in page.text_content("h1")
                 _shot(page, "8-driving-bias-item")
+                # one clip above the other at full size (cars 68 px long), scaled down to fit a phone
+                shown = "imgs => imgs.map(i => i.clientWidth)"
+                assert page.eval_on_selector_all("main img", shown) == _images_drawn(page) == [882, 882]
+                page.set_viewport_size(PHONE)
+                _fits(page)
+                assert max(page.eval_on_selector_all("main img", shown)) <= PHONE["width"] - 20
+                _shot(page, "7-phone-driving-bias-item")
+                page.set_viewport_size({"width": 1280, "height": 900})
             with page.expect_navigation():
                 page.click("#submit")
         assert "Waiting for the next question" in page.content()
@@ -299,7 +310,7 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
         for k in range(3):
             assert page.text_content(".progress") == f"item {k + 1} of 3"
             item = page.input_value("input[name=item_id]")
-            assert _images_drawn(page) == [600]  # highway-env's 600-px road
+            assert _images_drawn(page) == [882]  # 63 m of highway-env's road at 14 px a metre
             page.fill("#rating", str(ratings[item]))
             if k == 0:
                 _shot(page, "8-driving-rating-item")

@@ -77,6 +77,75 @@ def _gif_frames(client, url) -> int:
     return Image.open(io.BytesIO(r.content)).n_frames
 
 
+def _gif_seconds(client, url) -> float:
+    """A GIF's length: the sum of its frames' durations."""
+    with Image.open(io.BytesIO(client.get(url).content)) as im:
+        return sum((im.seek(k), im.info["duration"])[1] for k in range(im.n_frames)) / 1000
+
+
+def _gif_rgb(path) -> list[np.ndarray]:
+    """A GIF's frames as [H, W, 3] int arrays, each held frame once per 70 ms of its duration."""
+    with Image.open(path) as im:
+        out = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            out += [np.asarray(im.convert("RGB"), int)] * round(im.info["duration"] / 70)
+        return out
+
+
+def _box(frame: np.ndarray, rgb, tol: int = 12):
+    """(x0, x1, y0, y1) of the pixels within ``tol`` of ``rgb``."""
+    ys, xs = np.nonzero(np.abs(frame - np.asarray(rgb)).max(-1) <= tol)
+    return xs.min(), xs.max(), ys.min(), ys.max()
+
+
+def _brake_light_px(frame: np.ndarray, box) -> int:
+    """Brake-light red pixels at the back (left end) of a car's box."""
+    x0, _, y0, y1 = box
+    part = frame[y0 : y1 + 1, max(0, x0 - 3) : x0 + 14]
+    return int(((part[..., 0] > 220) & (part[..., 1] < 60) & (part[..., 2] < 60)).sum())
+
+
+EGO, FRONT = (50, 200, 0), (100, 200, 255)
+
+
+def test_driving_clips_show_large_cars_brake_lights_and_loop_in_step(tmp_path):
+    """Issue 49: the cars were 25 px long with no brake lights, and a pair's clips lasted 4.6 and 5.5 s."""
+    study, store, renderer = open_study(study_file(tmp_path, "driving-training"), tmp_path / "t.sqlite")
+    item = next(it for it in store.items() if it["id"] == "sanity")
+    safe, crash = item["data"]["safe"], "b" if item["data"]["safe"] == "a" else "a"
+    clips = {side: _gif_rgb(renderer.path(item, side, "")) for side in "ab"}
+    assert len(clips["a"]) == len(clips["b"]) == 1 + 15 * 6 + 10  # the crash (5 steps) held to the safe one's length
+    start = clips[safe][0]
+    x0, x1, y0, y1 = _box(start, EGO)
+    assert x1 - x0 + 1 >= 60 and start.shape[1] >= 800  # a 5 m car is 68 px (inside its outline)
+    fx0 = _box(start, FRONT)[0]
+    assert fx0 > x1 and fx0 < start.shape[1] - 60  # the front car in view ahead, with room for it to pull away
+    # the front car brakes from the first decision, the ego from the second (the crash's ego never does)
+    assert _brake_light_px(start, (x0, x1, y0, y1)) == 0 and _brake_light_px(start, _box(start, FRONT)) == 0
+    frame = clips[safe][8]
+    assert _brake_light_px(frame, _box(frame, FRONT)) >= 100 and _brake_light_px(frame, _box(frame, EGO)) == 0
+    frame = clips[safe][1 + 15 + 7]
+    assert _brake_light_px(frame, _box(frame, EGO)) >= 100
+    frame = clips[crash][1 + 15 + 7]
+    assert _brake_light_px(frame, _box(frame, EGO)) == 0 and _brake_light_px(frame, _box(frame, FRONT)) >= 100
+
+
+def test_a_sleety_road_looks_sleety_and_a_dry_one_does_not(tmp_path):
+    seg = scripted_segment(make_world(sleet=1.0).params, 0.95, True, 2)
+    looks = {}
+    for sleet in (1.0, 0.0):
+        study = load_study(study_file(tmp_path, "driving-training", domain={"name": "driving", "sleet": sleet}))
+        frame = np.asarray(sd.frames(study, seg)[0], int)
+        verge = frame[:5].reshape(-1, 3).mean(0)  # the ground above the road
+        road = frame[frame.shape[0] // 2 + 45 : frame.shape[0] // 2 + 70]  # the lane below the ego's
+        streaks = int((road.min(-1) > 200).sum())  # light pixels on the road surface off the lane lines
+        looks[sleet] = (verge, streaks)
+    (snow, sleety), (grass, dry) = looks[1.0], looks[0.0]
+    assert snow.min() > 200 and grass[1] > grass[0] + 20 and grass[1] > grass[2] + 20  # white verge vs green
+    assert sleety > 100 and dry < sleety / 5
+
+
 def _segments(item_data: dict) -> tuple[Segments, Segments]:
     return tuple(
         Segments(*(np.asarray([item_data[s][f]], bool if f == "mask" else np.float32) for f in Segments._fields))
@@ -112,10 +181,13 @@ def test_the_training_phase_end_to_end_in_process(tmp_path):
     page = people[0].get()
     assert ("How will your car brake?" in page) == (hidden(page, "item_id") == "bias")
     media = sorted(set(re.findall(r'/p/[^"]+/media/[^"]+', page)))
-    assert len(media) == 2
+    assert len(media) == 2 and 'class="pictures pair wide"' in page  # one clip above the other, each at full size
     item = hidden(page, "item_id")
-    for url, side in zip(media, "ab"):  # highway-env's animation: the start and 15 frames per real decision
-        assert _gif_frames(client, url) == 1 + 15 * sum(items[item]["data"][side]["mask"])
+    # highway-env's animation: the start and 15 frames per real decision, the shorter held on its last frame
+    lengths = [1 + 15 * sum(items[item]["data"][side]["mask"]) for side in "ab"]
+    for url, n in zip(media, lengths):
+        assert _gif_frames(client, url) == n
+    assert [_gif_seconds(client, url) for url in media] == [pytest.approx(0.07 * (max(lengths) + 10))] * 2
     for who in people:
         who.step(), who.step()  # the bias question and the sanity item, in each one's order
     assert "Waiting for the next question" in people[0].get()

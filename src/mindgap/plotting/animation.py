@@ -32,7 +32,8 @@ def save_gif(path: Path, frames: list[np.ndarray], fps: float = 25.0, scale: flo
     """Write ``frames`` (each [H, W, 3] uint8) as an animated GIF, looping; returns the frames written.
 
     Every k-th frame is kept so that at most ``max_frames`` remain (the clip's duration is kept:
-    each frame then shows for k / fps seconds).
+    each frame then shows for k / fps seconds, rounded to the GIF's unit of 10 ms, so that a clip
+    lasts exactly its frames times that: two clips of as many frames loop in step).
     """
     from PIL import Image
 
@@ -47,7 +48,8 @@ def save_gif(path: Path, frames: list[np.ndarray], fps: float = 25.0, scale: flo
             im = im.resize((max(1, int(im.width * scale)), max(1, int(im.height * scale))), Image.Resampling.BILINEAR)
         images.append(im.convert("P", palette=Image.Palette.ADAPTIVE))
     buf = io.BytesIO()
-    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 * step / fps), loop=0)
+    duration = 10 * max(1, round(100 * step / fps))  # the GIF counts in hundredths of a second
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=duration, loop=0)
     atomic_write(path, buf.getvalue())
     return len(images)
 

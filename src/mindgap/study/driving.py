@@ -183,15 +183,54 @@ def rollout_items(study) -> list:
     return items
 
 
-def frames(study, seg: dict) -> list[np.ndarray]:
-    """highway-env's animation frames of one segment of the study's world."""
+def frames(study, seg: dict, length: int | None = None) -> list[np.ndarray]:
+    """The animation frames of one segment of the study's world, as a participant sees them.
+
+    highway-env draws the segment (:func:`~mindgap.envs.driving.highway.segment_frames`) with the
+    camera of :func:`mindgap.plotting.driving.view_config` (cars 70 px long, the road section from
+    behind the ego to past the front car); :func:`mindgap.plotting.driving.decorate` crops it to
+    the road, draws the sleet and lights each car's brake lights in the decisions where it slows.
+    ``length`` pads the clip with its last frame to that many frames (both clips of a pair are
+    padded to the longer one's :func:`clip_length`, so that they loop in step).
+    """
     from ..envs.driving.highway import segment_frames
+    from ..envs.driving.params import SUBSTEPS
+    from ..plotting.driving import decorate, view_config
 
     a = world_args(study.domain)
     window = (a["brake_first"], a["brake_last"])
-    return segment_frames(
-        seg["obs"], seg["act"], seg["mask"], sleet=a["sleet"], traffic=a["traffic"], brake_window=window
+    config = view_config(int(driving_world(study.domain).params.lanes))
+    raw = segment_frames(
+        seg["obs"], seg["act"], seg["mask"], sleet=a["sleet"], traffic=a["traffic"], brake_window=window, config=config
     )
+    per_decision = braking(seg)
+    # frame 0 is the start; frame 1 + 15 t + k is integration step k of decision t
+    flags = np.concatenate([np.zeros((1, 2), bool), np.repeat(per_decision, SUBSTEPS, 0)])[: len(raw)]
+    out = decorate(raw, flags, a["sleet"])
+    if length is not None and length > len(out):
+        out += [out[-1]] * (length - len(out))
+    return out
+
+
+def clip_length(seg: dict) -> int:
+    """The number of frames highway-env draws for a segment: its start and 15 a real step."""
+    from ..envs.driving.params import SUBSTEPS
+
+    return 1 + SUBSTEPS * int(np.asarray(seg["mask"], bool).sum())
+
+
+def braking(seg: dict) -> np.ndarray:
+    """[n, 2] bool: whether the ego and the front car slow down in each of a segment's n real steps."""
+    from ..envs.driving.world import EGO_OBS, SPEED_SCALE
+
+    mask = np.asarray(seg["mask"], bool)
+    obs, nxt = np.asarray(seg["obs"], float)[mask], np.asarray(seg["next_obs"], float)[mask]
+    speeds = lambda o: o[:, [2, EGO_OBS + 2]] * SPEED_SCALE  # noqa: E731  the ego's and the front car's [m/s]
+    return (speeds(obs) - speeds(nxt)) > BRAKE_LIGHT_DROP
+
+
+BRAKE_LIGHT_DROP = 0.05
+"""Speed lost over a decision [m/s] above which a car's brake lights are on in that decision."""
 
 
 # ---------------------------------------------------------------------------------------

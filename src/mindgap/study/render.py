@@ -6,9 +6,10 @@
   readable on a phone, where the steps wrap into rows;
 * grid7 demonstrations: the grid with the demonstrated path (drawn here: the grid
   heatmaps of :mod:`mindgap.plotting.heatmaps` show values, not paths);
-* terrain segments: the map of :mod:`mindgap.plotting.terrain` with the segment's path
-  and, as small grey arrows, what the agent pushed for at each step (so an expectation
-  question can be judged), or an animated GIF (``animation: true`` in ``items``);
+* terrain segments: the map of :mod:`mindgap.plotting.terrain`, zoomed to the part the
+  segment covers, with its path and, as white arrows outlined in black, what the agent pushed
+  for at each step (so an expectation question can be judged), or an animated GIF
+  (``animation: true`` in ``items``);
 * gymnasium segments (``domain: {name: gym, env: gym:ID}``): always an animated GIF, the env
   drawing itself in each state of the segment
   (:func:`mindgap.plotting.animation.observation_frames`: MuJoCo envs whose observations
@@ -16,7 +17,8 @@
 * driving segments and rollouts (``domain: {name: driving}``, §4.4.2): always an animated GIF
   drawn by highway-env, every integration step of every decision
   (:func:`mindgap.envs.driving.highway.segment_frames`, which states how the scene is set from
-  the segment's observations).
+  the segment's observations), cropped to the road with brake lights and sleet drawn on
+  (:func:`mindgap.study.driving.frames`); both clips of a pair last as long.
 
 Matplotlib is not thread-safe, so drawing holds one lock; each picture is drawn once
 and written through a rename, then served from the cache folder. A cached file is named
@@ -40,7 +42,7 @@ PART_COLOURS = {"a": "#d62728", "b": "#1f77b4"}
 
 
 # Bumped when a drawing changes, so that pictures cached by an older mindgap are drawn again.
-DRAWING_VERSION = 2
+DRAWING_VERSION = 3
 _STEP = re.compile(r"step-([0-9]{1,4})")
 
 
@@ -118,9 +120,13 @@ class Renderer:
             save_grid_demo(tmp, d["states"], d["size"])
         elif domain == "driving":  # highway-env's animation of the segment (or the rated rollout)
             from ..plotting.animation import save_gif
-            from .driving import frames
+            from .driving import clip_length, frames
 
-            save_gif(tmp, frames(self.study, d["segment"] if part == "demo" else d[part]), fps=DRIVING_FPS, scale=1.0)
+            if part == "demo":
+                clip = frames(self.study, d["segment"])
+            else:  # both clips of a pair as long as the longer one, plus a pause, so that they loop in step
+                clip = frames(self.study, d[part], max(clip_length(d["a"]), clip_length(d["b"])) + DRIVING_PAUSE)
+            save_gif(tmp, clip, fps=DRIVING_FPS, scale=1.0)
         elif domain == "gym":
             from ..plotting.animation import observation_frames, save_gif
 
@@ -132,12 +138,18 @@ class Renderer:
 
                 save_rollout_gif(tmp, self.world.params, segment_positions(self.world.params, seg), fps=4)
             else:
-                save_segment(tmp, self.world.params, seg, PART_COLOURS[part], part.upper())
+                # both behaviours of a pair in one window when they are close (an expectation
+                # question's two outcomes from one start), so that they compare at a glance
+                both = np.concatenate([segment_positions(self.world.params, d[k]) for k in ("a", "b")])
+                view = segment_view(self.world.params, both) if np.ptp(both, 0).max() <= SHARED_VIEW else None
+                save_segment(tmp, self.world.params, seg, PART_COLOURS[part], part.upper(), view)
         tmp.replace(out)
 
 
 DRIVING_FPS = 15.0
 """Frames a second of a driving animation: highway-env's 15 integration steps a decision, in real time."""
+DRIVING_PAUSE = 10
+"""Frames (2/3 s) a pair's driving clips hold their last frame before they loop."""
 GYM_FPS = 10.0
 """Frames a second of a gymnasium segment's animation (slower than the envs' own 25–125 Hz, so a
 ten-step segment lasts about a second)."""
@@ -192,33 +204,67 @@ def segment_positions(params, seg: dict) -> np.ndarray:
     return world_pos(params, np.concatenate([obs[:1], nxt[mask]]))
 
 
-def save_segment(path: Path, params, seg: dict, colour: str, label: str) -> None:
-    """One terrain segment on the map: path, start ring, end dot, and the pushes as grey arrows."""
+TERRAIN_MARGIN = 1.0
+"""Cells of map shown around a terrain segment's positions (:func:`segment_view`)."""
+SHARED_VIEW = 3.0
+"""Cells: a pair's behaviours are drawn in one window when their positions span at most this."""
+TERRAIN_CELL_INCHES = 1.1
+"""The size of a map cell in a zoomed terrain picture (110 px at its 100 dpi)."""
+
+
+def segment_view(params, pos: np.ndarray, margin: float = TERRAIN_MARGIN, min_cells: float = 3.0):
+    """The part of the map that positions ``pos`` [n, 2] cover: ``(x0, x1, y0, y1)`` in cells, their
+    bounding box with ``margin`` cells around it, at least ``min_cells`` wide and high, within the map."""
+    h, w = np.asarray(params.grid).shape
+    lo, hi = np.asarray(pos, float).min(0) - margin, np.asarray(pos, float).max(0) + margin
+    grow = np.maximum(min_cells - (hi - lo), 0.0) / 2
+    lo, hi = lo - grow, hi + grow
+    size = np.array([w, h], float)
+    shift = np.maximum(0.0, -lo) - np.maximum(0.0, hi - size)  # slide back inside the map before clipping
+    lo, hi = np.clip(lo + shift, 0.0, size), np.clip(hi + shift, 0.0, size)
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+
+
+def save_segment(path: Path, params, seg: dict, colour: str, label: str, view=None) -> None:
+    """One terrain segment, zoomed to ``view`` (default: the part of the map it covers,
+    :func:`segment_view`): path, start ring, end dot, and the pushes as white arrows outlined in
+    black (seen on the dark walls too)."""
     import matplotlib.pyplot as plt
+    from matplotlib import patheffects
 
     from ..plotting.terrain import draw_world
 
     pos = segment_positions(params, seg)
     act = np.asarray(seg["act"])[np.asarray(seg["mask"], bool)]
-    h, w = np.asarray(params.grid).shape
-    fig, ax = plt.subplots(figsize=(0.42 * w + 0.4, 0.42 * h + 0.5))
+    x0, x1, y0, y1 = view or segment_view(params, pos)
+    c = TERRAIN_CELL_INCHES
+    fig, ax = plt.subplots(figsize=(c * (x1 - x0) + 0.2, c * (y1 - y0) + 0.45))
     draw_world(ax, params, starts=False)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y1, y0)
+    outline = [patheffects.withStroke(linewidth=3.5, foreground="white")]
+    ax.plot(pos[:, 0], pos[:, 1], "-", color=colour, lw=3, path_effects=outline, zorder=4)
     ax.quiver(
         pos[:-1, 0],
         pos[:-1, 1],
         act[:, 0],
         act[:, 1],
-        color="#555555",
+        color="white",
+        edgecolor="black",
+        linewidth=1.0,
         angles="xy",
         scale_units="xy",
-        scale=2.5,
-        width=0.004,
+        scale=3.0,
+        width=0.014,
+        headwidth=3.5,
+        headlength=4,
+        headaxislength=3.5,
+        zorder=3,
     )
-    ax.plot(pos[:, 0], pos[:, 1], "-", color=colour, lw=2)
-    ax.plot(pos[0, 0], pos[0, 1], "o", mfc="none", mec=colour, ms=9, mew=2)
-    ax.plot(pos[-1, 0], pos[-1, 1], "o", color=colour, ms=6)
-    ax.set_title(f"behaviour {label}", fontsize=10)
-    fig.tight_layout()
+    ax.plot(pos[0, 0], pos[0, 1], "o", mfc="white", mec=colour, ms=14, mew=3, zorder=5)
+    ax.plot(pos[-1, 0], pos[-1, 1], "o", color=colour, mec="white", ms=11, mew=1.5, zorder=5)
+    ax.set_title(f"behaviour {label}", fontsize=12)
+    fig.tight_layout(pad=0.3)
     fig.savefig(path, dpi=100, format="png")
     plt.close(fig)
 
