@@ -38,6 +38,11 @@ def test_panels_fields_and_gif(tmp_path):
     with Image.open(gif) as im:
         assert im.format == "GIF" and getattr(im, "n_frames", 1) == 6
     assert not list(tmp_path.glob("*.part*"))
+    # zoomed to the 5 × 2 cells around the path at 1.1 inches a cell: about 110 px a cell, not the whole map's 45
+    zoom = save_rollout_gif(tmp_path / "z.gif", w.params, path, view=(1.0, 6.0, 0.5, 2.5), cell_inches=1.1)
+    with Image.open(zoom) as im, Image.open(gif) as whole:
+        assert im.n_frames == 6 and abs(im.size[0] - (5 * 1.1 + 0.4) * 100) <= 2
+        assert im.size[0] / 5 > 2 * whole.size[0] / w.params.grid.shape[1]
 
 
 def test_unknown_picture_format_is_an_error(tmp_path):

@@ -69,3 +69,24 @@ def test_a_view_is_kept_inside_the_map_and_at_least_three_cells_across():
     assert segment_view(params, np.array([[0.2, 0.3], [0.4, 0.5]])) == (0.0, 3.0, 0.0, 3.0)
     assert segment_view(params, np.array([[5.0, 2.0], [9.0, 2.5]])) == (4.0, 10.0, 0.75, 3.75)
     assert segment_view(params, np.array([[0.5, 0.5], [13.5, 5.5]])) == (0.0, 14.0, 0.0, 6.0)
+
+
+def test_an_animated_terrain_behaviour_is_zoomed_as_the_still_one(tmp_path):
+    """``animation: true`` draws each behaviour as a GIF of the same window as its still picture."""
+    import yaml
+    from PIL import Image
+
+    from mindgap.study.render import TERRAIN_CELL_INCHES, segment_positions, segment_view
+    from mindgap.study.server import open_study
+
+    path = study_file(tmp_path, "terrain-preference")
+    raw = yaml.safe_load(path.read_text())
+    raw["items"] = {**raw["items"], "animation": True}
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    study, store, renderer = open_study(path, tmp_path / "t.sqlite")
+    item = store.items()[0]
+    pos = segment_positions(renderer.world.params, item["data"]["a"])
+    x0, x1, _, _ = segment_view(renderer.world.params, pos)
+    with Image.open(renderer.path(item, "a", "")) as im:
+        assert im.format == "GIF" and im.n_frames > 1
+        assert abs(im.width - 100 * (TERRAIN_CELL_INCHES * (x1 - x0) + 0.4)) <= 2  # the window, ~110 px a cell

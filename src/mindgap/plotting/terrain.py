@@ -127,15 +127,26 @@ def save_fields(
     return path
 
 
-def save_rollout_gif(path: str | Path, params, positions: np.ndarray, fps: int = 8, title: str | None = None) -> Path:
-    """Animate one rollout ``positions [T, 2]`` as a GIF (the trail grows, a dot marks the agent)."""
+def save_rollout_gif(
+    path: str | Path, params, positions: np.ndarray, fps: int = 8, title: str | None = None, view=None,
+    cell_inches: float = 0.45,
+) -> Path:  # fmt: skip
+    """Animate one rollout ``positions [T, 2]`` as a GIF (the trail grows, a dot marks the agent).
+
+    ``view``: ``(x0, x1, y0, y1)`` in cells, the part of the map shown (default all of it), drawn at
+    ``cell_inches`` a cell.
+    """
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     path = Path(path)
     p = np.asarray(positions)
     h, w = np.asarray(params.grid).shape
-    fig, ax = plt.subplots(figsize=(0.45 * w + 0.4, 0.45 * h + 0.5))
+    x0, x1, y0, y1 = view or (0.0, float(w), 0.0, float(h))
+    fig, ax = plt.subplots(figsize=(cell_inches * (x1 - x0) + 0.4, cell_inches * (y1 - y0) + 0.5))
     draw_world(ax, params)
+    if view is not None:
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y1, y0)
     if title:
         ax.set_title(title, fontsize=9)
     (trail,) = ax.plot([], [], "-", color=METHOD_COLOURS[0], lw=1.5)

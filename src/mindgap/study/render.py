@@ -136,7 +136,9 @@ class Renderer:
             if out.suffix == ".gif":
                 from ..plotting.terrain import save_rollout_gif
 
-                save_rollout_gif(tmp, self.world.params, segment_positions(self.world.params, seg), fps=4)
+                pos = segment_positions(self.world.params, seg)  # zoomed as the still pictures are
+                save_rollout_gif(tmp, self.world.params, pos, fps=4, view=segment_view(self.world.params, pos),
+                                 cell_inches=TERRAIN_CELL_INCHES)  # fmt: skip
             else:
                 # both behaviours of a pair in one window when they are close (an expectation
                 # question's two outcomes from one start), so that they compare at a glance
