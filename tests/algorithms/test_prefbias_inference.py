@@ -525,3 +525,22 @@ def test_fit_keeps_the_posterior_that_predicts_the_held_out_answers_best(key):
     assert held_nll(new) < held_nll(state) - 0.05  # it learned, judged on answers it never trained on
     _, plain = jax.jit(fit, static_argnames="cfg")(state, data, key, cfg=dataclasses.replace(cfg, holdout_every=0))
     assert np.isnan(float(plain.held_nll))
+
+
+def test_each_fit_starts_afresh_at_the_priors_unless_told_to_warm_start(key):
+    """Alg. 2, line 7: a fit to all answers so far; ``refit`` (the default) ignores where the last fit ended."""
+    data, norm = _toy_data(key, pairs=32)
+    dcfg = DynamicsConfig(hidden=(8,))
+    cfg = PrefBiasConfig(reward_hidden=(8,), dynamics=dcfg, updates=50, check_every=25, batch_size=16, **PLAIN)
+    psi = init_mlp(jax.random.fold_in(key, 9), dynamics_sizes(2, 2, dcfg.hidden))
+    fresh = prefbias_init(jax.random.fold_in(key, 1), 2, 2, cfg, DynamicsModel(psi, norm))
+    moved = fresh._replace(reward=fresh.reward._replace(mean=jax.tree.map(lambda x: x + 0.3, fresh.reward.mean)))
+    fit_jit = jax.jit(fit, static_argnames="cfg")
+    k = jax.random.fold_in(key, 2)
+    a, _ = fit_jit(fresh, data, k, cfg=cfg)
+    b, _ = fit_jit(moved, data, k, cfg=cfg)
+    for x, y in zip(jax.tree.leaves((a.reward, a.belief)), jax.tree.leaves((b.reward, b.belief)), strict=True):
+        np.testing.assert_array_equal(x, y)
+    warm = dataclasses.replace(cfg, refit=False)
+    c, _ = fit_jit(moved, data, k, cfg=warm)
+    assert not np.allclose(np.asarray(c.reward.mean[0][0]), np.asarray(a.reward.mean[0][0]))

@@ -128,6 +128,7 @@ def test_the_command_fits_the_belief_by_maximum_likelihood(tmp_path, capsys):
         (["--set", "nonsense=1"], "expected FIELD=VALUE with FIELD one of"),
         (["--set", "belief_prior_std=-1"], "belief_prior_std must be positive"),
         (["--updates", "30"], "multiple of check_every"),
+        (["--rounds", "7"], "multiple of rounds"),
     ],
 )
 def test_the_recovery_command_names_bad_input_in_one_line(tmp_path, capsys, extra, msg):

@@ -64,6 +64,8 @@ def add_parser(sub) -> None:
     r.add_argument("--budget", type=int, default=800, help="answered queries to learn from (default 800)")
     r.add_argument("--segment", type=int, default=10, help="steps per segment (default 10)")
     r.add_argument("--updates", type=int, default=3000, help="rounds of the inference (default 3000)")
+    r.add_argument("--rounds", type=int, default=1,
+                   help="fit as the loop does: R fits of UPDATES/R rounds on growing shares of the answers (default 1)")  # fmt: skip
     r.add_argument("--person", choices=("biased", "unbiased"), default="biased", help="who answers (default biased)")
     r.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                    help="a PrefBiasConfig field of the inference, e.g. belief_prior_std=0.1 (repeatable)")  # fmt: skip
@@ -158,8 +160,8 @@ def _recovery(args) -> int:
     from ..algorithms.prefbias_inference import PrefBiasConfig
     from ..experiments.belief_recovery import RecoveryConfig, belief_recovery, report, save_figure
 
-    cfg = RecoveryConfig(budget=args.budget, segment=args.segment, updates=args.updates, person=args.person,
-                         tabular=not args.no_tabular, seed=args.seed)  # fmt: skip
+    cfg = RecoveryConfig(budget=args.budget, segment=args.segment, updates=args.updates, rounds=args.rounds,
+                         person=args.person, tabular=not args.no_tabular, seed=args.seed)  # fmt: skip
     cfg.check()
     try:
         pcfg = PrefBiasConfig(**prefbias_overrides(args.set))

@@ -68,6 +68,9 @@ class RecoveryConfig:
     """Rounds of the inference (ten fits of the full preset's 300, as the loop's ten feedback rounds)."""
     draws: int = 32
     """Draws of q(φ) for the spread of the predicted move."""
+    rounds: int = 1
+    """Fit as the loop does: in round r of R, ``updates / R`` rounds on the first r/R of the answers, warm-started
+    (the full preset: 10 rounds of 300 on 80, 160, … 800 answers). 1: all answers at once."""
     person: str = "biased"
     tabular: bool = True
     """Also run the tabular maximum-likelihood fit (the reference)."""
@@ -76,6 +79,8 @@ class RecoveryConfig:
     def check(self) -> None:
         if self.budget < 1 or self.segment < 1 or self.updates < 1 or self.draws < 2:
             raise ValueError("budget, segment and updates must be at least 1, draws at least 2")
+        if self.rounds < 1 or self.updates % self.rounds:
+            raise ValueError(f"updates ({self.updates}) must be a multiple of rounds ({self.rounds})")
         if self.person not in PERSONS:
             raise ValueError(f"unknown person {self.person!r}: choose from {', '.join(PERSONS)}")
         if not self.beta > 0:
@@ -200,10 +205,17 @@ def belief_recovery(world, pcfg: PrefBiasConfig, cfg: RecoveryConfig = RecoveryC
     start = dynamics_init(k_psi0, 2, 2, pcfg.dynamics, norm, stay=pcfg.stay_head)
     dyn, _ = train_dynamics(k_psi, obs, act, nxt, valid, pcfg.dynamics, init=start)
 
-    say(f"fitting q(w) q(φ) for {cfg.updates} rounds")
-    fcfg = dataclasses.replace(pcfg, updates=cfg.updates)
+    say(f"fitting q(w) q(φ) for {cfg.updates} rounds" + (f" in {cfg.rounds} fits" if cfg.rounds > 1 else ""))
+    fcfg = dataclasses.replace(pcfg, updates=cfg.updates // cfg.rounds)
+    fcfg.check()
     state = prefbias_init(k_init, 2, 2, fcfg, dyn, units=world.obs_units())
-    state, info = jax.jit(fit, static_argnames="cfg")(state, data, k_fit, cfg=fcfg)
+    fit_jit = jax.jit(fit, static_argnames="cfg")
+    if cfg.rounds == 1:
+        state, info = fit_jit(state, data, k_fit, cfg=fcfg)
+    else:  # round r learns from the first r/R of the answers, warm-started, as the loop's feedback rounds
+        for r in range(1, cfg.rounds + 1):
+            part = data._replace(count=jnp.asarray(cfg.budget * r // cfg.rounds, jnp.int32))
+            state, info = fit_jit(state, part, jax.random.fold_in(k_fit, r), cfg=fcfg)
 
     say("measuring")
     p = preference_prob(state.reward.mean, state.belief.mean, state.norm, held_data.seg_a, held_data.seg_b, fcfg,
@@ -269,7 +281,8 @@ def report(r: Recovery) -> str:
     c = r.config["recovery"]
     lines = [
         f"belief recovery on {r.world} (belief {r.belief}; answers by the {r.person} person, {c['budget']} to learn from"
-        f" and {c['budget']} held out, β = {c['beta']:g}; PrefBias's inference alone, {c['updates']} rounds)",
+        f" and {c['budget']} held out, β = {c['beta']:g}; PrefBias's inference alone, {c['updates']} rounds"
+        + (f" in {c['rounds']} fits on growing answers" if c.get("rounds", 1) > 1 else "") + ")",
         "  held-out true transitions by terrain of the start:",
         "    terrain  transitions   P(not moving): truth  person   f_ψ    f_φ    f_φ's move mean across draws",
     ]
