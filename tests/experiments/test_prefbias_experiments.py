@@ -178,6 +178,12 @@ def test_nav_fast_writes_curves_results_figures_and_resumes(stand_ins, tmp_path,
         "table.md",
     ):
         assert (out / name).stat().st_size > 0, name
+    # a run in slices: the outputs of a folder where one world has no finished job yet but its reference
+    for p in (out / "jobs").glob("nav2-v1__*.json"):
+        if "reference" not in p.name:
+            p.unlink()
+    assert main(["reproduce", "nav", "--fast", "--quiet", *V1, "--out", str(out), "--assemble"]) == 0
+    assert {r["world"] for r in rows(out / "results.csv")} == {"nav1-v1"}
     # another configuration in the same folder is refused; --fresh recomputes everything
     assert main(["reproduce", "nav", "--fast", "--quiet", *V1, "--seeds", "2", "--out", str(out)]) == 2
     assert "another configuration" in capsys.readouterr().err

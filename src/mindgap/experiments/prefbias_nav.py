@@ -100,7 +100,7 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
     for spec in cfg.worlds:
         world = wm.experiment_world(spec, "nav")
         routes.append(f"{world.name}: {wm.route_name(world)}")
-        recs = sorted([r for r in learned if r["world"] == spec] + [oracles[spec]] * (spec in oracles), key=_order)
+        recs = sorted([r for r in learned if r["world"] == spec] + ([oracles[spec]] if spec in oracles else []), key=_order)
         if not recs:
             continue
         ref = refs.get(spec)
