@@ -39,12 +39,10 @@ from ..data.prefs import PrefData
 from ..data.segments import Segments
 from ..envs.terrain.dynamics import log_prob_pos, move_model, terrain_at
 from ..envs.terrain.layout import TERRAINS
-from ..envs.terrain.params import TerrainState
-from ..envs.terrain.world import reward
 from ..models.bayes import sample_params
 from ..models.gaussian_dynamics import dynamics_init, fit_norm, train_dynamics
 from ..models.prefbias_nets import belief_predict, belief_stay_prob
-from ..planning.belief_fit import fit_belief, simulate_queries
+from ..planning.belief_fit import fit_belief, person_step_score, simulate_queries
 from ..planning.design_check import ACTIONS, DesignConfig, plan_policies
 from ..planning.terrain_maps import belief_stay_map, table_stay_map
 
@@ -142,9 +140,7 @@ def _person_logits(world_params, belief, floor, q):
     """S(a) − S(b) of each query under the answering person's own reward and belief: [Q]."""
 
     def score(s, a, s2):
-        zero = jnp.zeros((), jnp.int32)
-        r = reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world_params)
-        return r + jnp.maximum(log_prob_pos(belief, s, a, s2), floor)
+        return person_step_score(world_params, belief, floor, s, a, s2)
 
     per = jax.vmap(jax.vmap(jax.vmap(score)))(q.pos, q.act, q.nxt)
     s = jnp.sum(jnp.where(q.live, per, 0.0), -1)

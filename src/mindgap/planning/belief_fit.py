@@ -122,12 +122,17 @@ def simulate_queries(
     return _answer(k_pair, world_params, belief_params, trans, float(beta), segment, budget, log_t_floor)
 
 
+def person_step_score(world, belief, floor, s, a, s2) -> jax.Array:
+    """The person's score of one step: r_H(s, a, s') + max(log T_H(s' | s, a), floor) (Eqs. 3.4–3.5)."""
+    zero = jnp.zeros((), jnp.int32)
+    r = reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world)
+    return r + jnp.maximum(log_prob_pos(belief, s, a, s2), floor)
+
+
 @partial(jax.jit, static_argnames=("segment", "budget"))
 def _answer(key, world, belief, trans, beta, segment, budget, floor) -> Queries:
     def score(s, a, s2):
-        zero = jnp.zeros((), jnp.int32)
-        r = reward(TerrainState(s, zero, False), a, TerrainState(s2, zero, False), world)
-        return r + jnp.maximum(log_prob_pos(belief, s, a, s2), floor)
+        return person_step_score(world, belief, floor, s, a, s2)
 
     cut = (trans[3].shape[1] // segment) * segment
     pos, act, nxt, live = (x[:, :cut].reshape(-1, segment, *x.shape[2:]) for x in trans)
