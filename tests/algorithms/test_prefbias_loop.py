@@ -14,7 +14,9 @@ from mindgap.algorithms import engine, prefbias
 from mindgap.algorithms.prefbias import prefbias_config, train
 from mindgap.cli import main
 from mindgap.data.replay import terminal_bonus
+from mindgap.data.stays import is_stay
 from mindgap.envs.terrain import load_world
+from mindgap.envs.terrain.world import position
 from mindgap.models.prefbias_nets import BeliefWeights, absorbing_value, belief_net, posterior_reward
 from mindgap.planning.terrain import rollouts
 from mindgap.planning.terrain_maps import noise_maps
@@ -148,6 +150,12 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, t
     after = np.asarray(buf.reward)
     np.testing.assert_allclose(after[:, :size], np.asarray(expect)[:, :size], rtol=1e-5, atol=1e-6)
     assert not np.allclose(after[:, :size], before[:, :size])
+    # the learner reads a stay where the world made one, though the loop's two observations of the
+    # state may differ in the last bit
+    pos, nxt = position(buf.obs[:, :size], icy.params), position(buf.next_obs[:, :size], icy.params)
+    world_stays = np.asarray(jnp.all(pos == nxt, -1))
+    assert world_stays.any()
+    np.testing.assert_array_equal(np.asarray(is_stay(buf.obs[:, :size], buf.next_obs[:, :size])), world_stays)
     # the first round fitted f_ψ on the buffer and centred p(φ) on it; q(φ) started there
     psi = carry.model.dynamics.params[0][0]
     prior, mean = carry.model.posterior.belief_prior, carry.model.posterior.belief.mean

@@ -134,6 +134,14 @@ def test_log_prob_is_finite_far_in_the_tails(bump_params):
     assert float(log_prob_pos(precise, pos, a, pos + 0.01)) > float(log_prob_pos(precise, pos, a, pos + 0.02))
 
 
+def test_a_stay_read_back_from_observations_is_a_stay(bump_params):
+    """A position read back from an observation may differ from the state's in the last bit; the
+    point mass still scores it (a person scoring observed steps), not the density."""
+    pos, a = jnp.asarray([1.5, 2.5]), jnp.asarray([0.4, 0.0])
+    last_bit = jnp.nextafter(pos, jnp.inf)
+    assert float(log_prob_pos(bump_params, pos, a, last_bit)) == float(log_prob_pos(bump_params, pos, a, pos))
+
+
 def test_slide_keeps_the_motion_along_a_wall():
     """The freeze the bump rule has and the slide rule removes: a precise diagonal push into a
     wall (mean 0.3 cells inside it, 6σ) stays put under ``bump`` and, under ``slide``, moves the

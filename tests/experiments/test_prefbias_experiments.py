@@ -11,6 +11,7 @@ cache, one to a few with a warm one.
 """
 
 import csv
+import dataclasses
 import json
 from types import SimpleNamespace
 
@@ -22,6 +23,7 @@ import pytest
 from mindgap import rng
 from mindgap.algorithms import pbrl, prefbias
 from mindgap.cli import main
+from mindgap.data.segments import Segments
 from mindgap.envs.terrain import load_world
 from mindgap.experiments import prefbias_common as pc
 from mindgap.experiments import world_measures as wm
@@ -323,6 +325,9 @@ def test_nav_asks_an_unbiased_person_too_and_states_the_issue_s_claims():
     assert {pc.teacher_of(jobs[k]) for k in ("nav1/prefbias-q800", "nav1/pebble-q800")} == {"biased"}
     assert pc.teacher_of(jobs["nav1/sac"]) == "true"
     assert not any("unbiased" in j.key for j in prefbias_nav.jobs(prefbias_nav.preset("fast")))
+    # the coin-flip control: PrefBias-800 with the same schedule, its person answering at β = 0
+    coin, twin = jobs["nav1/prefbias-q800-coin"].cfg, jobs["nav1/prefbias-q800"].cfg
+    assert coin.teacher.beta == 0.0 and dataclasses.replace(coin, teacher=twin.teacher) == twin
 
     def row(method, norm, better, err, person="biased", std=0.05):
         return dict(
@@ -347,10 +352,11 @@ def test_nav_asks_an_unbiased_person_too_and_states_the_issue_s_claims():
                 row("pebble", 0.6, 0.2, 0.7),
                 row("prefbias", 0.97, 1.0, 0.2, "unbiased"),
                 row("pebble", 0.99, 1.0, 0.2, "unbiased"),
+                row("prefbias", 0.3, 0.2, 1.2, "coin"),
             ],
         )
     }
-    assert len(held) == 6 and all(held.values()), held
+    assert len(held) == 7 and all(held.values()), held
     held = {
         c["text"]: c["held"]
         for c in prefbias_nav._claims(
@@ -360,10 +366,11 @@ def test_nav_asks_an_unbiased_person_too_and_states_the_issue_s_claims():
                 row("pebble", 0.85, 0.6, 0.7),
                 row("prefbias", 0.80, 1.0, 0.2, "unbiased"),
                 row("pebble", 0.99, 1.0, 0.2, "unbiased"),
+                row("prefbias", 0.83, 0.4, 0.9, "coin"),  # within 2 standard errors of the person's answers
             ],
         )
     }
-    assert len(held) == 6 and not any(held.values()), held
+    assert len(held) == 7 and not any(held.values()), held
 
 
 def test_measures_on_a_world_without_a_map():
@@ -468,3 +475,14 @@ def test_the_engine_s_unbiased_person_believes_the_truth():
     np.testing.assert_array_equal(biased.belief.dynamics.stuck, nav1.belief().dynamics.stuck)
     with pytest.raises(ValueError, match="biased, unbiased, true"):
         preference_teacher(nav1, cfg, 1, "sceptical", None, who="test")
+    # the coin: the biased person at β = 0, whose answers are fair coins whatever the segments
+    coin, _ = preference_teacher(nav1, pc.coin_flips(cfg), 1, "biased", None, who="test")
+    def still(x, y):  # 4000 segments of three steps held still at one point (obs units)
+        at = jnp.broadcast_to(jnp.array([x, y]), (4000, 3, 2))
+        return Segments(at, jnp.zeros_like(at), at, jnp.ones((4000, 3), bool))
+
+    better, seg = still(-0.786, -0.5), still(0.643, 0.5)  # in the goal; on the sand, far from it
+    labels, _ = coin.answer(jax.random.key(0), better, seg)
+    assert abs(float(labels.mean()) - 0.5) < 0.03  # 4000 fair coins: 4 standard deviations
+    labels, _ = biased.answer(jax.random.key(0), better, seg)
+    assert float(labels.mean()) > 0.9

@@ -5,6 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy import stats
 
+from mindgap.data.stays import is_stay
 from mindgap.models.gaussian_dynamics import (
     DynamicsConfig,
     Norm,
@@ -123,3 +124,25 @@ def test_stay_head_learns_the_stay_rate_and_keeps_the_noise_narrow(key):
     assert 0.03 < stds[True][1] < 0.07, stds  # the moves' own noise
     # a plain Gaussian widens to cover the stays (here 0.1-cell steps: by about half)
     assert stds[False][1] > 1.3 * stds[True][1], stds
+
+
+def test_a_stay_read_back_with_a_last_bit_difference_is_scored_as_a_stay():
+    """Two observations of one state may differ in the last bit (the loop rounds ``observe`` in two
+    places); the stay head scores such a step by p_stay, as an exact stay, and a real move (here
+    10⁻⁴, far below any world's noise) by the Gaussian."""
+    norm = Norm(jnp.zeros(4), jnp.ones(4), jnp.zeros(2), jnp.array([0.5, 2.0]))
+    obs = jnp.array([[0.38133138, -0.4017267]] * 3)
+    last_bit = obs.at[:, 1].set(jnp.nextafter(obs[:, 1], -jnp.inf))
+    nxt = jnp.stack([obs[0], last_bit[1], obs[2] + 1e-4])
+    assert np.asarray(last_bit[1] != obs[1]).any()
+    raw = jnp.array([[1.0, -1.0, 0.0, 2.0, 0.7]] * 3)
+    lp = np.asarray(next_state_log_prob(raw, norm, obs, nxt, 0.01))
+    np.testing.assert_allclose(lp[:2], np.log(1 / (1 + np.exp(-0.7))), rtol=1e-6)
+    gauss = float(log_density(*gaussian_head(raw[:, :4], norm, obs, 0.01), nxt)[2])
+    np.testing.assert_allclose(lp[2], np.log1p(-1 / (1 + np.exp(-0.7))) + gauss, rtol=1e-5)
+
+
+def test_is_stay_tolerates_rounding_only():
+    x = jnp.array([[0.3, -12.5], [0.0, 1e-9], [7.0, 7.0]])
+    assert np.asarray(is_stay(x, jnp.nextafter(x, jnp.inf))).all()
+    assert not np.asarray(is_stay(x, x + jnp.array([0.0, 1e-4]))).any()  # 10⁻⁴: a move, at any scale here

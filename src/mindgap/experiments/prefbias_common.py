@@ -141,10 +141,18 @@ def oracle_job(world: str, learn: Learners) -> Job:
     return Job(f"{world}/sac", world, "sac", "SAC (oracle)", learn.sac, {"queries": 0})
 
 
-PERSONS = {"biased": "biased", "unbiased": "unbiased", "reward-only": "true"}
+PERSONS = {"biased": "biased", "unbiased": "unbiased", "reward-only": "true", "coin": "biased"}
 """Who answers a learner's queries, and the engine's teacher for them: the world's biased person
-(r_H + log T_H), the same person without the bias (r_H + log T, the true dynamics), or a person who
-scores by r_H alone (B-Pref's teacher; a separate control, not the unbiased person)."""
+(r_H + log T_H), the same person without the bias (r_H + log T, the true dynamics), a person who
+scores by r_H alone (B-Pref's teacher; a separate control, not the unbiased person), or a coin
+(the biased person at β = 0, :func:`coin_flips`: every answer a fair coin, the control that shows
+a learner learns from what the answers contain)."""
+
+
+def coin_flips(cfg):
+    """A learner's config whose person answers by a fair coin: Bradley–Terry at β = 0 (Eq. 3.4), so
+    P(σ₁ ≻ σ₂) = ½ whatever the segments; the schedule, queries and everything else unchanged."""
+    return dataclasses.replace(cfg, teacher=dataclasses.replace(cfg.teacher, beta=0.0))
 
 
 def pebble_job(world: str, learn: Learners, queries: int, person: str = "biased") -> Job:

@@ -5,7 +5,9 @@ copes with sand; nav2: the nearer the pit, the likelier a fall) answers preferen
 by Σ [r_H + log T_H]. PrefBias learns from 200, 400 and 800 of them; PEBBLE from the same
 person with 800; SAC on the true reward is the oracle. With ``unbiased`` (the default),
 PrefBias and PEBBLE also learn from an unbiased person (Σ [r_H + log T]) at the largest
-budget: the control that PrefBias costs nothing when there is no bias to find. All share one
+budget: the control that PrefBias costs nothing when there is no bias to find. With ``coin``
+(the default), PrefBias at the largest budget also learns from coin-flip answers: the control
+that it learns from what the answers contain. All share one
 schedule (:func:`~.prefbias_common.learners`); every (world, learner, person) is one job, its
 seeds vmapped.
 
@@ -48,6 +50,9 @@ class NavConfig:
     """PEBBLE's budget (same person, same schedule)."""
     unbiased: bool = True
     """Also run PrefBias (largest budget) and PEBBLE with an unbiased person."""
+    coin: bool = True
+    """Also run PrefBias (largest budget) on coin-flip answers (:func:`~.prefbias_common.coin_flips`):
+    a learner that learns from the answers must do worse on them than on the person's."""
     seeds: int = 10
     """Ten: with five, one oracle seed below the random policy moved nav2's normalised scores by half."""
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))
@@ -59,7 +64,9 @@ def preset(name: str) -> NavConfig:
     if name == "full":
         return NavConfig()
     if name == "fast":
-        return NavConfig(budgets=(30,), pebble_queries=30, seeds=1, unbiased=False, learners=pc.learners("fast"))
+        return NavConfig(
+            budgets=(30,), pebble_queries=30, seeds=1, unbiased=False, coin=False, learners=pc.learners("fast")
+        )
     raise ValueError(f"unknown preset {name!r}: use 'fast' or 'full'")
 
 
@@ -77,6 +84,10 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
             label = f"PrefBias ({q} queries, unbiased person)"
             out.append(pc.prefbias_job(w, pb, label, f"prefbias-q{q}-unbiased", person="unbiased"))
             out.append(pc.pebble_job(w, cfg.learners, cfg.pebble_queries, person="unbiased"))
+        if cfg.coin:
+            q = max(cfg.budgets)
+            pb = pc.coin_flips(replace(cfg.learners.prefbias, queries=q))
+            out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries, coin-flip answers)", f"prefbias-q{q}-coin", person="coin"))
     return out
 
 
@@ -90,8 +101,8 @@ def run(cfg: NavConfig, out: Path, **kw) -> dict:
 
 
 def _order(rec: dict) -> tuple:
-    unbiased = rec["tags"].get("person") == "unbiased"
-    return (unbiased, {"prefbias": 0, "pebble": 1, "sac": 2}[rec["method"]], rec["tags"].get("queries", 0))
+    person = {"biased": 0, "unbiased": 1, "coin": 2}.get(rec["tags"].get("person", "biased"), 3)
+    return (person, {"prefbias": 0, "pebble": 1, "sac": 2}[rec["method"]], rec["tags"].get("queries", 0))
 
 
 def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
@@ -129,7 +140,7 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
         "normalised: 0 = random policy, 1 = the SAC oracle's median seed; better route: share of seeds on the "
         f"truly better route ({', '.join(routes)}); reaches goal: share of seeds whose rollouts mostly reach "
         "the goal; reward error: z-scored RMS (0 exact, 1.41 unrelated); persons: biased (r_H + log T_H), "
-        "unbiased (r_H + log T).\n\n"
+        "unbiased (r_H + log T), coin (a fair coin: the control that the answers are what is learned from).\n\n"
         + pc.markdown(header, table)
     )
     summary = {"experiment": "nav", "config": to_jsonable(cfg), "results": rows, "claims": claims, "table_md": table_md}
@@ -195,6 +206,19 @@ def _claims(world, rows: list[dict]) -> list[dict]:
                     f"{world.name}: {top['label']}'s reward error is below {r['label']}'s",
                     top["reward_error_mean"] < r["reward_error_mean"],
                     f"{top['reward_error_mean']:.2f} vs {r['reward_error_mean']:.2f}",
+                )
+            )
+    coin = [r for r in rows if r.get("person") == "coin" and r["method"] == "prefbias"]
+    if coin:
+        c = coin[0]
+        twin = [r for r in pb if r["queries"] == c["queries"]]
+        if twin:
+            a = twin[0]
+            out.append(
+                pc.claim(
+                    f"{world.name}: {a['label']} learns from the answers: above coin-flip answers by ≥ 2 standard errors",
+                    a["normalised_mean"] - c["normalised_mean"] >= 2 * _se(a, c),
+                    f"normalised {a['normalised_mean']:.2f} vs {c['normalised_mean']:.2f}",
                 )
             )
     u_pb = [r for r in unbiased if r["method"] == "prefbias"]

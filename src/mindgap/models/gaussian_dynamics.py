@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from ..data.stays import is_stay
 from .categorical import action_input
 from .mlp import Params, init_mlp, mlp
 
@@ -141,12 +142,12 @@ def has_stay_head(raw: jax.Array, obs: jax.Array) -> bool:
 
 def with_stay(raw: jax.Array, obs: jax.Array, next_obs: jax.Array, log_move: jax.Array) -> jax.Array:
     """The mixture's log-probability from the Gaussian's log density ``log_move [...]``: unchanged
-    without a stay head; with one, log p_stay where ``next_obs == obs`` (every coordinate) and
-    ``log(1 − p_stay) + log_move`` elsewhere."""
+    without a stay head; with one, log p_stay where ``next_obs`` equals ``obs`` up to float rounding
+    (:func:`~mindgap.data.stays.is_stay`) and ``log(1 − p_stay) + log_move`` elsewhere."""
     if not has_stay_head(raw, obs):
         return log_move
     logit = raw[..., -1]
-    stay = jnp.all(next_obs == obs, axis=-1)
+    stay = is_stay(obs, next_obs)
     return jnp.where(stay, jax.nn.log_sigmoid(logit), jax.nn.log_sigmoid(-logit) + log_move)
 
 

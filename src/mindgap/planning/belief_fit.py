@@ -33,6 +33,7 @@ import numpy as np
 import optax
 
 from .. import rng
+from ..data.stays import is_stay
 from ..envs.terrain.dynamics import log_prob_pos, terrain_at
 from ..envs.terrain.layout import FLOOR, GOAL, PIT, TERRAINS
 from ..envs.terrain.params import TerrainState
@@ -335,7 +336,7 @@ def imprecise_moves(q: Queries, precision: float, key: jax.Array) -> Queries:
     # per axis a sum of M sines of RMS 1/√2 each, over √M: RMS precision/√2 per axis, precision in all
     arg = jnp.einsum("...i,mi->...m", q.pos, freq)[..., None] + phase  # [..., M, 2]
     delta = precision * jnp.sin(arg).sum(-2) / jnp.sqrt(FIELD_WAVES)
-    stay = jnp.all(q.nxt == q.pos, axis=-1, keepdims=True)
+    stay = is_stay(q.pos, q.nxt)[..., None]
     return q._replace(nxt=jnp.where(stay, q.nxt, q.nxt - delta))
 
 

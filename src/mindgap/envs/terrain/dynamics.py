@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 from jax.scipy.special import log_ndtr, logsumexp, ndtr
 
+from ...data.stays import is_stay
 from .layout import PIT, WALL
 from .params import TerrainParams
 
@@ -214,8 +215,9 @@ def _slides(params: TerrainParams) -> jax.Array:
 def log_prob_pos(params: TerrainParams, pos: jax.Array, action: jax.Array, next_pos: jax.Array) -> jax.Array:
     """Exact log p(s' | s, a) of the mixed next-position distribution.
 
-    Returns the log probability of the point mass when ``next_pos == pos`` (stuck or
-    bumped) and the log density (per cell²) otherwise; −inf for positions the model cannot
+    Returns the log probability of the point mass when ``next_pos`` is ``pos`` (stuck or
+    bumped; up to float rounding, :func:`~mindgap.data.stays.is_stay`: positions read back from
+    observations may differ in the last bit) and the log density (per cell²) otherwise; −inf for positions the model cannot
     produce. Shapes: ``pos, action, next_pos`` [2] → scalar (vmap for batches).
     """
     mean, sigma, stuck = move_model(params, pos, action)
@@ -231,8 +233,9 @@ def log_prob_pos(params: TerrainParams, pos: jax.Array, action: jax.Array, next_
     log_z = jax.lax.cond(slide, lambda: log_allowed_mass(params, pos, mean, sigma), lambda: jnp.zeros((), mean.dtype))
     log_density = log_density - log_z
     moved = jnp.where(landing_allowed(params, pos, next_pos), log_density, -jnp.inf)
-    log_p = jnp.where(jnp.all(next_pos == pos), log_stay, moved)
-    stays = jnp.where(jnp.all(next_pos == pos), 0.0, -jnp.inf)
+    same = is_stay(pos, next_pos)
+    log_p = jnp.where(same, log_stay, moved)
+    stays = jnp.where(same, 0.0, -jnp.inf)
     return jnp.where(trapped(params, pos), stays, log_p)
 
 
