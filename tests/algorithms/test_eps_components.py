@@ -9,11 +9,13 @@ import pytest
 from scipy import stats
 
 from mindgap.algorithms.eps_reward import (
+    cost_offsets,
     entropy_mean_from_replay,
     environment_entropy,
     eps_reward,
     eps_reward_params,
     eps_sac_config,
+    policy_entropy_max,
     raw_u,
     u_norm_from_replay,
     world_reward,
@@ -120,13 +122,13 @@ def test_reshaped_reward_on_hand_made_transitions(d1):
     np.testing.assert_allclose(reward_fn(plain, obs, act, nxt), r_a, rtol=1e-6)
 
 
-def test_h_t_is_weighted_as_u_h_is_and_centred_by_default(d1, key):
+def test_h_t_is_weighted_as_u_h_is_and_a_cost_by_default(d1, key):
     """E log T_H (inside the standardised u_H) and H_T are halves of one −KL: both on u_H's scale, λ/s_H for H_T."""
     from mindgap.algorithms import engine, eps
     from mindgap.algorithms.eps_config import eps_config
 
     cfg = eps_config("fast")
-    assert cfg.centre_entropy  # H_T's unit-dependent constant removed, as u_H's mean is
+    assert cfg.offset == "cost"  # the λ-term ≤ 0 on the buffer, as the −KL it stands for
     model, _, _ = eps._init(key, d1.env, cfg)
     model = model._replace(h_shift=jnp.float32(-2.0), u_norm=jnp.array([0.3, 0.8], jnp.float32))
     params = eps._reward_params(model, engine.WorldArgs(d1.params, d1.obs_units(), None), d1.env, cfg)
@@ -153,6 +155,42 @@ def test_normalisation_statistics_come_from_the_filled_buffer(d1):
     params = eps_reward_params(d1, u_params, constant_dynamics([0.0, 0.0], 0.01), 1.0, min_std=0.01)
     h = 2 * (0.5 * np.log(2 * np.pi * np.e) + np.log((0.01 + np.log(2)) * 3.5))
     np.testing.assert_allclose(float(entropy_mean_from_replay(params, buf)), h, rtol=1e-5)
+
+
+def test_as_a_cost_the_lambda_term_never_pays_to_linger(d1):
+    """Eq. 4.6's λ-term is −KL, ≤ 0. Centred over the buffer it is a bonus wherever the person's model
+    rates a step above average: on d1, holding still beside the goal, where u_H is highest, then beats
+    finishing (discounted, with the largest policy entropy SAC can add). As a cost it does not."""
+    buf = replay_init(32, 2, 2)
+    for x in np.linspace(1.5, 4.5, 10):  # the agent's buffer: steps along row 2, u_H rising with x
+        o = _obs(d1, (x, 2.5))
+        buf = replay_add(buf, o, jnp.zeros(2), o, 0.0, 0.0, False, 0)
+    u_params = _linear_u([1.0, 3.0], [0.0, 0.5])
+    lam, gamma, w = 2.5, 0.99, 1 / 7
+    params = eps_reward_params(d1, u_params, constant_dynamics([-1.0, -1.0], 0.01), lam, min_std=0.01, h_weight=w)
+    params = dataclasses.replace(params, **dict(zip(("u_mean", "u_std"), u_norm_from_replay(u_params, buf))))
+    pi_max = policy_entropy_max(d1.env)
+    assert pi_max == pytest.approx(2 * np.log(2))  # two squashed action dimensions
+    linger = (_obs(d1, (4.5, 2.5)),) * 2, jnp.zeros(2)  # still, one cell below the cell left of the goal
+    finish = (_obs(d1, (4.5, 1.5)), _obs(d1, (5.2, 1.5))), jnp.array([1.0, 0.0])  # into the goal, then absorbed
+
+    def values(p):
+        def r(step):
+            (o, o2), a = step
+            return float(eps_reward(p, o[None], a[None], o2[None])[0]) + lam * w * pi_max  # SAC's α H_π at most
+
+        return r(linger) / (1 - gamma), r(finish)
+
+    centred = dataclasses.replace(params, h_shift=entropy_mean_from_replay(params, buf))
+    stay, end = values(centred)
+    assert stay > end  # the centred term pays the agent to hold still instead of finishing
+    u_mean, h_shift = cost_offsets(params, buf, pi_max)
+    cost = dataclasses.replace(params, u_mean=u_mean, h_shift=h_shift)
+    r_a = world_reward(cost, buf.obs[:10], buf.act[:10], buf.next_obs[:10])
+    term = (eps_reward(cost, buf.obs[:10], buf.act[:10], buf.next_obs[:10]) - r_a) / lam + w * pi_max
+    assert float(term.max()) == pytest.approx(0.0, abs=1e-5) and float(term.min()) < -0.5  # ≤ 0, 0 at the top
+    stay, end = values(cost)
+    assert stay < 0 < end  # as a cost, lingering costs what its steps cost
 
 
 def test_the_reshaped_reward_plugs_into_the_sac_loop(d1, key):

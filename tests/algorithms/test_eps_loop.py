@@ -38,19 +38,20 @@ def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
 
 
 @pytest.mark.parametrize(
-    "method, centre, surrogate",
+    "method, offset, surrogate",
     [
-        ("eps", False, "learned"),
-        ("eps", True, "learned"),
-        ("drlhp", False, "learned"),
-        ("eps", False, "exact"),
-        ("drlhp", False, "exact"),
+        ("eps", "cost", "learned"),
+        ("eps", "centred", "learned"),
+        ("eps", "none", "learned"),
+        ("drlhp", "cost", "learned"),
+        ("eps", "cost", "exact"),
+        ("drlhp", "cost", "exact"),
     ],
 )
-def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, centre, surrogate, key):
+def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, offset, surrogate, key):
     world = load_world("d1")
-    # ("eps", False, "learned") is the CLI test's round
-    cfg = eps_config("fast", method=method, centre_entropy=centre, surrogate=surrogate)
+    # ("eps", "cost", "learned") is the CLI test's round
+    cfg = eps_config("fast", method=method, offset=offset, surrogate=surrogate)
     # an untrained actor stands in for π_H: the round's bookkeeping does not depend on its quality
     person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor, world.env)
     person = dataclasses.replace(person, cfg=cfg.teacher)
@@ -71,15 +72,22 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, c
         want = fn(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
         np.testing.assert_allclose(np.asarray(buf.reward[:n]), np.asarray(want), rtol=1e-4, atol=1e-4)
         assert not np.allclose(np.asarray(buf.reward[:n]), before[s, :n])  # the rewards did change
-        if centre:  # H_T centred over the buffer (EPSConfig.centre_entropy)
-            h = environment_entropy(params, buf.obs[:n], buf.act[:n])
+        u = eps.normalised_u(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
+        h = environment_entropy(params, buf.obs[:n], buf.act[:n])
+        if method == "eps" and offset == "centred":  # u_H and H_T centred over the buffer
             assert float(jnp.mean(h)) == pytest.approx(0.0, abs=1e-3) and float(c.model.h_shift) != 0.0
+        elif method == "eps" and offset == "cost":  # the λ-term ≤ 0 on every step, 0 on the buffer's best
+            term = u + params.h_weight * h  # h = H_T − H_π,max; SAC adds H_π ≤ H_π,max
+            assert float(c.model.h_shift) == pytest.approx(eps.policy_entropy_max(env))
+            assert float(term.max()) == pytest.approx(-float(params.h_weight) * float(c.model.h_shift), abs=1e-3)
         else:
             assert float(c.model.h_shift) == 0.0  # Eq. 4.6 as written
+        if method == "drlhp" or offset != "cost":  # standardised to mean 0 over the buffer
+            assert float(jnp.mean(u)) == pytest.approx(0.0, abs=2e-3)
         if surrogate == "exact":  # u_H is the person's own score, standardised over the buffer
             score = step_log_likelihood(person, buf.obs[:n], buf.act[:n], buf.next_obs[:n], cfg.teacher.log_t_floor)
-            u = eps.normalised_u(params, buf.obs[:n], buf.act[:n], buf.next_obs[:n])
-            np.testing.assert_allclose(np.asarray(u), np.asarray((score - score.mean()) / score.std()), atol=2e-3)
+            z = (score - score.mean()) / score.std()
+            np.testing.assert_allclose(np.asarray(u - u.mean()), np.asarray(z), atol=2e-3)
             assert not np.allclose(np.asarray(params.u_mean), 0.0)
         if method == "drlhp":  # u_H standardised over the buffer (§4.3.3)
             assert float(jnp.mean(buf.reward[:n])) == pytest.approx(0.0, abs=1e-3)

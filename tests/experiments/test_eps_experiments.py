@@ -203,7 +203,7 @@ def test_lambda_fast_routes_and_trend(stand_ins, tmp_path, capsys):
         "d4: the explicability rises with λ within seed noise",
         "d4: the return falls with λ within seed noise",
     ]
-    assert "| d4 | 1.5 |" in printed
+    assert "| d4 | 1.5 |" in printed and "held still" in printed
     for name in ("routes.png", "lambda.png", "table.md", "curves.csv"):
         assert (out / name).stat().st_size > 0, name
 
@@ -233,6 +233,18 @@ def test_required_route_on_hand_made_routes():
     assert not ec.required_route(d1, route, near)  # nearer the optimal berth than the person's
     assert ec.required_route(d1, route, {**near, "expected": None}) is None
     assert ec.required_route(load_world("nav1"), route, person) is None  # no eps_route there
+
+
+def test_a_seed_held_still_short_of_the_goal_is_counted():
+    d1 = load_world("d1")  # goal: the cell x ∈ [5, 6], y ∈ [1, 2]
+    walk = np.stack([np.linspace(1.5, 4.5, 30), np.full(30, 3.5)], -1)  # along row 3
+    stopped = np.concatenate([walk, np.repeat(walk[-1:], 20, 0) + 0.01])  # then 20 steps in place
+    arrived = np.concatenate([walk, [[5.5, 1.5]] * 20])  # then into the goal and staying there
+    assert world_measures.held_still(d1, stopped)
+    assert not world_measures.held_still(d1, walk)  # still moving when the horizon came
+    assert not world_measures.held_still(d1, arrived)
+    seeds = [[stopped, stopped, walk], [arrived, stopped, arrived], [walk]]  # per seed, its rollouts
+    assert world_measures.held_still_seeds(d1, seeds) == 1  # most rollouts of seed 0 only
 
 
 def test_monotone_within_noise():

@@ -19,7 +19,8 @@ checkpoints, evaluation and curve rows), vmapped over seeds in jitted chunks:
    policy-entropy term (line 10; :mod:`~mindgap.algorithms.eps_reward`).
 
 u_H has unit spread over the buffer, so λ weighs it against r_A the same way in every
-world. The two entropies, H_T (centred over the buffer as u_H is) and the policy's, are
+world, and its offset makes the λ-term a cost, ≤ 0 on every step of the buffer, as the −KL it
+stands for (``EPSConfig.offset``). The two entropies, H_T and the policy's, are
 weighted λ/s_H, with s_H = ``nats_per_unit`` (7) the same in
 every world: the spread, in nats, that one unit of the standardised u_H stands for
 (:mod:`~mindgap.algorithms.eps_reward`, "Scale of H_π").
@@ -56,9 +57,11 @@ from .eps_config import EPSConfig
 from .eps_reward import (
     EPSRewardParams,
     ExactSurrogate,
+    cost_offsets,
     entropy_mean_from_replay,
     eps_reward,
     normalised_u,
+    policy_entropy_max,
     u_norm_from_replay,
 )
 from .sac_loop import n_actions
@@ -70,7 +73,7 @@ class EPSModel(NamedTuple):
     reward: RewardState
     dynamics: DynamicsModel
     u_norm: jax.Array  # [2]: mean and std of u_H over the buffer
-    h_shift: jax.Array  # subtracted from H_T: its mean over the buffer (or 0)
+    h_shift: jax.Array  # subtracted from H_T (EPSConfig.offset): H_π,max, H_T's mean over the buffer, or 0
     started: jax.Array = jnp.zeros((), bool)  # a feedback round has fitted T_A
 
 
@@ -148,14 +151,18 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
 
 
 def _learn(m: EPSModel, prefs, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
-    """Line 7 and §4.3.3: fit u_H to every answer, standardise it (and optionally H_T) over the buffer."""
+    """Line 7 and §4.3.3: fit u_H to every answer, standardise it over the buffer, set the λ-term's
+    constant (``cfg.offset``: a cost by default)."""
     loss, acc = jnp.zeros(()), jnp.ones(())
     if cfg.surrogate == "learned":
         rew, loss, acc = train_reward(m.reward, prefs, key, cfg.reward)
         m = m._replace(reward=rew)
-    m = m._replace(u_norm=jnp.stack(u_norm_from_replay(u_params(m, w.oracle, cfg), buf)))
-    if cfg.method == "eps" and cfg.centre_entropy:
+    m = m._replace(u_norm=jnp.stack(u_norm_from_replay(u_params(m, w.oracle, cfg), buf)), h_shift=jnp.zeros(()))
+    if cfg.method == "eps" and cfg.offset == "centred":
         m = m._replace(h_shift=entropy_mean_from_replay(_reward_params(m, w, env, cfg), buf))
+    elif cfg.method == "eps" and cfg.offset == "cost":  # the λ-term ≤ 0 on the buffer (eps_reward's docstring)
+        u_mean, h_shift = cost_offsets(_reward_params(m, w, env, cfg), buf, policy_entropy_max(env))
+        m = m._replace(u_norm=m.u_norm.at[0].set(u_mean), h_shift=h_shift)
     return m, (loss, acc)
 
 

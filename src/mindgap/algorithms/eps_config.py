@@ -17,6 +17,7 @@ from .sac import SACConfig
 
 METHODS = ("eps", "drlhp")
 SURROGATES = ("learned", "exact")
+OFFSETS = ("cost", "centred", "none")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,9 +50,12 @@ class EPSConfig(Schedule):
     standardised u_H stands for; the policy entropy and H_T are weighted λ/s_H (α = λ·reward_scale/s_H)
     so that u_H + H_T + H_π keeps the balance of the KLs it comes from. One value for every world
     (docs/methods/eps.md)."""
-    centre_entropy: bool = True
-    """Subtract H_T's mean over the buffer, as u_H is centred: H_T's constant depends on the units
-    of the state and would act as a per-step cost or bonus (docs/methods/eps.md)."""
+    offset: str = "cost"
+    """The constant of the λ-term per step, which standardising u_H leaves open
+    (:mod:`~mindgap.algorithms.eps_reward`, docs/methods/eps.md). ``cost``: the term is ≤ 0 on every
+    step of the buffer, as the −KL of Eqs. 4.2–4.4 it stands for, so holding still never pays.
+    ``centred``: u_H and H_T centred over the buffer (zero-mean: a bonus wherever the person's model
+    rates a step above average; the previous default). ``none``: u_H centred, H_T as Eq. 4.6 writes it."""
 
     surrogate: str = "learned"
     """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:
@@ -65,6 +69,8 @@ class EPSConfig(Schedule):
             raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
         if self.surrogate not in SURROGATES:
             raise ValueError(f"unknown surrogate {self.surrogate!r}: choose from {', '.join(SURROGATES)}")
+        if self.offset not in OFFSETS:
+            raise ValueError(f"unknown offset {self.offset!r}: choose from {', '.join(OFFSETS)}")
         if self.sampler not in SAMPLERS:
             raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
         if self.lam < 0:

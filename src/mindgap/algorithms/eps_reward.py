@@ -39,11 +39,23 @@ per-step score, an oracle ablation) is standardised over the buffer the same way
 Units of H_T: a differential entropy depends on the units of s'. Here it is measured in
 the world's own units, those of its exact densities log T_A, log T_H
 (:meth:`~mindgap.envs.interface.World.obs_units` converts from observation units; for the
-terrain worlds, cells: T_A models the observation in [−1, 1]², ``size/2`` cells per unit). A constant in H_T acts as
-a per-step bonus or cost, which matters in worlds whose episodes end, and that constant is
-an artefact of the units; ``h_shift`` is subtracted from H_T: by default its mean over the
-buffer (:func:`entropy_mean_from_replay`, ``EPSConfig.centre_entropy``), so that H_T is
-centred as u_H is, and the λ-term is −KL up to one constant removed from both halves.
+terrain worlds, cells: T_A models the observation in [−1, 1]², ``size/2`` cells per unit).
+
+The λ-term is a cost (``EPSConfig.offset = "cost"``, the default). Eq. 4.6's λ-term,
+E[log T_H + log π_H] + H_T + H_π, is −KL(agent ‖ person) (Eqs. 4.2–4.4): at most 0, 0 only
+where the agent does exactly what the person expects. Standardising u_H loses its constant,
+and a constant per step decides, in a world whose episodes end, whether ending them pays:
+centred over the buffer (``"centred"``), the term is zero-mean, a *bonus* wherever the person's
+model rates a step above the buffer's average, and holding still in a well-predicted place
+can beat finishing (docs/methods/eps.md). The cost form keeps the standardised scale and sets
+the constant so that the term is ≤ 0 on every step of the buffer, as the KL it stands for:
+u_H's offset makes the largest ``u_H + H_T / s_H`` over the buffer 0
+(:func:`cost_offsets`), and the policy entropy's part, ``(H_π − H_π,max) / s_H`` with
+H_π,max the entropy of a uniform policy (:func:`policy_entropy_max`), goes into the stored
+reward as ``h_shift`` — SAC adds λ H_π / s_H itself (``α``), so the whole λ-term
+``λ [u_H + (H_T + H_π − H_π,max) / s_H]`` is ≤ 0 on the buffer. ``"centred"`` is the
+previous default, kept for comparison: u_H standardised to mean 0 and ``h_shift`` H_T's mean
+over the buffer (:func:`entropy_mean_from_replay`); ``"none"`` centres u_H alone.
 """
 
 from __future__ import annotations
@@ -54,9 +66,10 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..data.replay import Replay, relabel
-from ..envs.interface import Env, World
+from ..envs.interface import Discrete, Env, World
 from ..models.agent_dynamics import dynamics_entropy
 from ..models.gaussian_dynamics import DynamicsModel
 from ..models.mlp import Params
@@ -210,6 +223,34 @@ def u_norm_from_replay(u_params, buf: Replay, eps: float = 1e-6) -> tuple[jax.Ar
     u = relabel(buf, raw_u, u_params).reward
     mean, std = _filled_stats(u, buf)
     return mean, jnp.maximum(std, eps)
+
+
+def policy_entropy_max(env: Env) -> float:
+    """H_π,max: the entropy of the uniform policy, the largest any policy has — ``a·log 2`` nats for
+    SAC's squashed actions in [−1, 1]^a (the densities H_π is measured in), ``log n`` for n
+    discrete actions."""
+    space = env.action_space
+    return float(np.log(space.n)) if isinstance(space, Discrete) else float(space.dim * np.log(2.0))
+
+
+def cost_offsets(params: EPSRewardParams, buf: Replay, pi_max: float) -> tuple[jax.Array, jax.Array]:
+    """``(u_mean, h_shift)`` that make the λ-term a cost over the filled buffer (module docstring).
+
+    With ``params.u_mean, u_std`` the buffer's mean and spread of u_H and ``h_shift = 0``: the
+    largest ``u_H + h_weight·H_T`` over the buffer, ``c``, moves u_H's offset to ``u_mean + u_std·c``
+    (so that the largest is 0), and ``h_shift = pi_max`` (:func:`policy_entropy_max`) charges the
+    policy entropy's ceiling, so that ``λ h_weight (H_π − pi_max) ≤ 0`` joins it.
+    """
+    base = dataclasses.replace(params, h_shift=jnp.zeros_like(params.h_shift))
+
+    def term(p, obs, act, next_obs):
+        return normalised_u(p, obs, act, next_obs) + p.h_weight * environment_entropy(p, obs, act)
+
+    values = relabel(buf, term, base).reward
+    filled = jnp.arange(buf.capacity) < buf.size
+    top = jnp.max(jnp.where(filled, values, -jnp.inf))
+    top = jnp.where(buf.size > 0, top, 0.0)
+    return params.u_mean + params.u_std * top, jnp.asarray(pi_max, jnp.float32)
 
 
 def entropy_mean_from_replay(params: EPSRewardParams, buf: Replay) -> jax.Array:

@@ -57,11 +57,10 @@ def add_parser(sub) -> None:
         "the policy entropy is weighted λ/s_H (default 7)",
     )
     p.add_argument(
-        "--centre-entropy",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="subtract H_T's mean over the buffer, as u_H is centred (default); --no-centre-entropy keeps "
-        "its unit-dependent constant, as Eq. 4.6 is written",
+        "--offset",
+        default="cost",
+        help="the λ-term's constant per step: cost (default: ≤ 0 on every step of the buffer, as the −KL it "
+        "stands for), centred (u_H and H_T centred over the buffer: a bonus above average), none (u_H centred)",
     )
     p.add_argument(
         "--surrogate",
@@ -121,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         sac=sac_config(args),
         sampler=args.sampler,
         queries_from=args.queries_from,
-        centre_entropy=args.centre_entropy,
+        offset=args.offset,
         surrogate=args.surrogate,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )

@@ -292,7 +292,8 @@ def route_share(world, rec: dict, person_rec: dict | None) -> float:
 
 
 def result_row(world, rec: dict, person_rec: dict | None) -> dict:
-    """One learner's row: return and explicability (mean, std over seeds), routes."""
+    """One learner's row: return and explicability (mean, std over seeds), routes, and how many seeds
+    are held still short of the goal (:func:`~.world_measures.held_still_seeds`)."""
 
     def ms(name):
         v = np.asarray(rec[name], np.float64)
@@ -306,6 +307,7 @@ def result_row(world, rec: dict, person_rec: dict | None) -> dict:
     row["policy_part_mean"], _ = ms("policy_part")
     row.update(
         required_route=route_share(world, rec, person_rec),
+        held_still=wm.held_still_seeds(world, rec["paths"]),
         **wm.route_means(rec["routes"]),
     )
     return row

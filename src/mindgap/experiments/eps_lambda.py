@@ -96,6 +96,7 @@ def write_outputs(cfg: LambdaConfig, out: Path, records: dict) -> dict:
                     pc.fmt(r["explicability_mean"], r["explicability_std"]),
                     pc.share(r["required_route"]),
                     pc.share(r["goal_rate"]),
+                    _count(r["held_still"], r["seeds"]),
                 ]
             )
         series[world.name] = mine
@@ -111,8 +112,8 @@ def write_outputs(cfg: LambdaConfig, out: Path, records: dict) -> dict:
         f"lambda (Fig. 31): EPS with λ from {cfg.lams[0]:g} to {cfg.lams[-1]:g}; return and explicability "
         f"score of {cfg.learners.rollouts} stochastic rollouts per seed, mean ± std over {cfg.seeds} seed(s); "
         "required route: share of seeds on the route EPS should take; goal: share of greedy rollouts "
-        "reaching the goal.\n\n"
-        + pc.markdown(["world", "λ", "return", "explicability", "required route", "goal"], table)
+        "reaching the goal; held still: seeds whose greedy rollouts mostly stop short of the goal.\n\n"
+        + pc.markdown(["world", "λ", "return", "explicability", "required route", "goal", "held still"], table)
     )
     summary = {
         "experiment": "lambda",
@@ -196,3 +197,8 @@ def _save_lambda_plot(path: Path, series: dict[str, list[dict]]) -> None:
     fig.savefig(buf, format="png", dpi=150)
     plt.close(fig)
     atomic_write(path, buf.getvalue())
+
+
+def _count(n: int | None, seeds: int) -> str:
+    """``n of seeds``, or – where it is not measured (a world without a map)."""
+    return "–" if n is None else f"{n} of {seeds}"

@@ -121,7 +121,7 @@ def write_outputs(cfg: EPSTableConfig, out: Path, records: dict) -> dict:
         if person is not None:
             person_rows.append(_person_row(spec, person, people.get((spec, "unbiased"))))
         names[spec] = world.name
-        t3.append([world.name] + [_cell(mine.get(m), "return") for m in METHODS])
+        t3.append([world.name] + [_cell(mine.get(m), "return") + _still(mine.get(m)) for m in METHODS])
         t4.append([world.name] + [_cell(mine.get(m), "explicability") for m in METHODS])
         claims += _claims(world, mine)
         traj_panels += _trajectory_panels(world, person, learned)
@@ -137,7 +137,8 @@ def write_outputs(cfg: EPSTableConfig, out: Path, records: dict) -> dict:
     n_roll = cfg.learners.rollouts
     table_md = (
         f"eps (Table 3): return under the true reward of {n_roll} stochastic rollouts per seed, "
-        f"mean ± std over {cfg.seeds} seed(s); EPS λ = {cfg.lam:g}.\n\n"
+        f"mean ± std over {cfg.seeds} seed(s); EPS λ = {cfg.lam:g}; (k still): k seeds whose greedy rollouts "
+        "mostly stop short of the goal.\n\n"
         + pc.markdown(["world"] + labels, t3)
         + "\neps (Table 4): explicability score −KL(p_A ‖ p_A^H) (Eq. 4.4) over the same rollouts "
         "(higher is more explicable; 0 is exactly what the person expects).\n\n" + pc.markdown(["world"] + labels, t4)
@@ -168,6 +169,12 @@ def write_outputs(cfg: EPSTableConfig, out: Path, records: dict) -> dict:
     }
     pc.write_summary(out, summary)
     return summary
+
+
+def _still(row: dict | None) -> str:
+    """`` (k still)`` where k > 0 seeds are held still short of the goal (:func:`~.world_measures.held_still_seeds`)."""
+    n = None if row is None else row.get("held_still")
+    return f" ({n} still)" if n else ""
 
 
 def _cell(row: dict | None, name: str) -> str:

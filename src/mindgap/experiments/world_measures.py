@@ -163,6 +163,31 @@ def plan_record(world, resolution: int, count: int, seed: int = 0) -> dict:
 NO_ROUTE = {"goal": None, "ice": None, "sand": None, "pit_mean": None, "better": None}
 """The route of a seed on a world without a map: nothing to judge."""
 
+STILL_STEPS = 10
+"""A rollout is held still when its last this many steps stay within :data:`STILL_RADIUS` of where it ends."""
+STILL_RADIUS = 0.25
+"""Cells: a quarter of a cell, far below a step (a full push moves a cell; the worlds' noise is 0.05)."""
+
+
+def held_still(world, path) -> bool:
+    """Whether a rollout (positions ``[T+1, 2]``) ends short of the goal, out of the pits, with the agent
+    stationary: its last :data:`STILL_STEPS` steps within :data:`STILL_RADIUS` cells of its end — an
+    agent that stopped, not one that ran out of time on its way."""
+    p = np.asarray(path, np.float64)
+    end = p[-1]
+    terrain = int(np.asarray(world.params.grid)[int(end[1]), int(end[0])])
+    if terrain in (GOAL, PIT) or len(p) <= STILL_STEPS:
+        return False
+    return bool(np.max(np.linalg.norm(p[-STILL_STEPS - 1 :] - end, axis=-1)) < STILL_RADIUS)
+
+
+def held_still_seeds(world, paths) -> int | None:
+    """How many seeds are held still: most of their rollouts (a record's ``paths``, per seed a list of
+    position arrays) :func:`held_still`. None on a world without a map."""
+    if not has_map(world):
+        return None
+    return int(sum(np.mean([held_still(world, p) for p in seed]) > 0.5 for seed in paths))
+
 
 def route_of(world, paths: list) -> dict:
     """The route one seed's greedy rollouts take: goal rate, terrain shares, pit distance, and
