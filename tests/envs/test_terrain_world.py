@@ -194,6 +194,7 @@ def test_named_worlds_load(name):
         ({"dynamics": {"floor": {"noise": 0.0}}}, r"floor: noise must be positive"),
         ({"rewards": {"gold": 1.0}}, r"\[rewards\]: unknown key\(s\) gold"),
         ({"expect": {"true_prefers": "lava"}}, r"must be 'ice' or 'sand'"),
+        ({"expect": {"obeying": "maybe"}}, r"obeying must be 'arrives' or 'fails'"),
         ({"horizon": 0}, r"horizon must be at least 1"),
         ({"rewards": {"form": "episode"}}, r"\[rewards\] form must be one of transition, state"),
         ({"rewards": {"form": "state", "progress": 1.0}}, r"a state-form reward cannot have it"),

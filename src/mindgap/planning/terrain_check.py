@@ -112,7 +112,7 @@ def check_world(
         in_truth,
         true_paths,
         expected_paths,
-        evaluate(world.expect, true, expected, scores),
+        evaluate(world.expect, true, expected, scores, in_truth),
         scores,
     )
 
@@ -130,10 +130,23 @@ def person_score(world_params, belief_params, p: Plan, positions, alive) -> floa
 
 
 def evaluate(
-    expect: dict, true: RouteStats, expected: RouteStats | None, person_scores: dict | None = None
+    expect: dict,
+    true: RouteStats,
+    expected: RouteStats | None,
+    person_scores: dict | None = None,
+    in_truth: RouteStats | None = None,
 ) -> list[Expectation]:
-    """Test a world's ``[expect]`` entries against the two routes' statistics (and the person's scores)."""
+    """Test a world's ``[expect]`` entries against the two routes' statistics (and the person's scores;
+    ``in_truth``: the expected policy run in the real world)."""
     out = []
+    if "obeying" in expect:  # what following the person's expected policy does in the real world
+        arrives = expect["obeying"] == "arrives"
+        text = f"the expected policy run in the real world {'reaches' if arrives else 'misses'} the goal in most rollouts"
+        if in_truth is None:
+            out.append(Expectation(text, False, "no belief to plan with"))
+        else:
+            held = in_truth.success >= 0.5 if arrives else in_truth.success < 0.5
+            out.append(Expectation(text, held, f"goal {in_truth.success:.0%}, return {in_truth.ret:.1f}"))
     for key, route, stats in (("true_prefers", "optimal", true), ("belief_prefers", "expected", expected)):
         if key not in expect:
             continue

@@ -52,7 +52,7 @@ from .layout import LayoutError, parse_layout
 from .params import Dynamics, Rewards, make_params
 from .world import TerrainWorld
 
-NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4", "nav1-v1", "nav2-v1")
+NAMED_WORLDS = ("nav1", "nav2", "d1", "d2", "d3", "d4", "nav1-v1", "nav2-v1", "d3-v1")
 _KEYS = {
     "name",
     "description",
@@ -66,7 +66,7 @@ _KEYS = {
     "expect",
 }
 REWARD_FORMS = ("transition", "state")
-EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth", "eps_route", "person_prefers"}
+EXPECT_KEYS = {"true_prefers", "belief_prefers", "wider_berth", "eps_route", "person_prefers", "obeying"}
 EPS_ROUTES = ("ice", "sand", "detour")
 
 
@@ -129,6 +129,8 @@ def world_from_dict(spec: dict, source: str | None = None) -> TerrainWorld:
             raise ValueError(f"{where}[expect] {key} must be 'ice' or 'sand', got {expect[key]!r}")
     if "person_prefers" in expect and expect["person_prefers"] != "expected":
         raise ValueError(f"{where}[expect] person_prefers must be 'expected', got {expect['person_prefers']!r}")
+    if "obeying" in expect and expect["obeying"] not in ("arrives", "fails"):
+        raise ValueError(f"{where}[expect] obeying must be 'arrives' or 'fails', got {expect['obeying']!r}")
     if "eps_route" in expect and expect["eps_route"] not in EPS_ROUTES:
         raise ValueError(
             f"{where}[expect] eps_route must be one of {', '.join(EPS_ROUTES)}, got {expect['eps_route']!r}"
