@@ -35,4 +35,19 @@ fi
 # Two test processes (pytest-xdist): most of the suite's time is XLA compiling, one core each.
 # A file's tests stay in one process (--dist loadfile), so those built on one configuration
 # compile it once.
-exec .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" --dist loadfile "${marker[@]}" "$@"
+# The suite's CPU time (user + system of every test process) is printed at the end: the default
+# tier's budget is kept in CPU-minutes (docs/development.md), so a change that costs more shows
+# in its own run.
+cpu_log=$(mktemp)
+children_cpu() {  # seconds of CPU used by this shell's finished children (`times` in this shell, not a subshell)
+  times > "$cpu_log"
+  tail -n 1 "$cpu_log" | awk '{ s = 0; for (i = 1; i <= 2; i++) { split($i, t, "m"); sub("s", "", t[2]); s += t[1] * 60 + t[2] }; print s }'
+}
+children_cpu > "$cpu_log.before"
+status=0
+.venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" --dist loadfile "${marker[@]}" "$@" || status=$?
+children_cpu > "$cpu_log.after"
+awk -v a="$(cat "$cpu_log.before")" -v b="$(cat "$cpu_log.after")" \
+  'BEGIN { printf "scripts/test.sh: the tests took %.1f CPU-minutes\n", (b - a) / 60 }'
+rm -f "$cpu_log" "$cpu_log.before" "$cpu_log.after"
+exit "$status"
