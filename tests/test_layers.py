@@ -5,7 +5,7 @@ The top-level modules and subpackages of ``mindgap`` sit in layers, lowest first
 0. ``data``, ``rng``, ``_io``, ``checkpoint``
 1. ``models``, ``envs``, ``feedback`` (``models`` and ``envs`` do not import each other)
 2. ``teachers``, ``planning``, ``plotting``
-3. ``metrics``, ``algorithms``
+3. ``metrics``, ``algorithms``, ``design``
 4. ``experiments``, ``study``; the public method modules ``sac``, ``pebble``, ``drlhp``,
    ``prefbias``, ``eps`` and their shared ``_api``
 5. ``commands``
@@ -13,7 +13,9 @@ The top-level modules and subpackages of ``mindgap`` sit in layers, lowest first
 
 A module may import only from its own layer or a lower one; imports inside functions
 count too. The package's own ``__init__`` re-exports from every layer and is not checked.
-Separately, no two modules of ``mindgap.experiments`` import each other.
+Within a layer, no two packages import each other (a cycle, even through other packages of
+the layer, is an order the layers do not state). Separately, no two modules of
+``mindgap.experiments`` import each other.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ RANK = {
     "plotting": 2,
     "metrics": 3,
     "algorithms": 3,
+    "design": 3,
     "experiments": 4,
     "study": 4,
     "_api": 4,
@@ -96,6 +99,37 @@ def upward_imports(root: Path) -> list[str]:
     return sorted(bad)
 
 
+def package_cycles(root: Path) -> list[str]:
+    """``"a -> b -> … -> a"`` for each cycle among the top-level packages of ``root`` (one per set of
+    packages that reach each other), imports inside functions included."""
+    edges: dict[str, set[str]] = {}
+    for module, path in _modules(root).items():
+        me = _layer(module)
+        if me not in RANK:
+            continue
+        for name in _imported(module, path):
+            other = _layer(name)
+            if other in RANK and other != me:
+                edges.setdefault(me, set()).add(other)
+
+    def path_back(start: str, node: str, seen: tuple) -> tuple | None:
+        for nxt in sorted(edges.get(node, ())):
+            if nxt == start:
+                return (*seen, start)
+            if nxt not in seen:
+                found = path_back(start, nxt, (*seen, nxt))
+                if found:
+                    return found
+        return None
+
+    cycles = {}
+    for start in sorted(edges):
+        found = path_back(start, start, (start,))
+        if found and frozenset(found) not in cycles:
+            cycles[frozenset(found)] = " -> ".join(found)
+    return sorted(cycles.values())
+
+
 def mutual_imports(root: Path, package: str) -> list[str]:
     """``"a <-> b"`` for each pair of modules in ``package`` that import each other directly."""
     modules = _modules(root)
@@ -115,6 +149,28 @@ def mutual_imports(root: Path, package: str) -> list[str]:
 
 def test_no_module_imports_from_a_higher_layer():
     assert upward_imports(SRC) == []
+
+
+def test_no_two_packages_import_each_other():
+    assert package_cycles(SRC) == []
+
+
+def test_the_checks_catch_an_upward_import_and_a_cycle(tmp_path):
+    """A planted package: ``teachers`` importing ``algorithms`` (a floor up), ``envs`` and ``feedback``
+    importing each other (one floor), ``planning`` importing ``teachers`` and back (one floor)."""
+    pkg = tmp_path / "mindgap"
+    files = {
+        "teachers/a.py": "from ..algorithms import engine\nfrom ..planning import b\n",
+        "algorithms/engine.py": "",
+        "planning/b.py": "def f():\n    from ..teachers import a\n",
+        "envs/c.py": "from ..feedback.d import x\n",
+        "feedback/d.py": "from ..envs import c\nx = 1\n",
+    }
+    for name, text in files.items():
+        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
+        (pkg / name).write_text(text)
+    assert upward_imports(pkg) == ["mindgap.teachers.a (teachers -> algorithms)"]
+    assert package_cycles(pkg) == ["envs -> feedback -> envs", "planning -> teachers -> planning"]
 
 
 def test_every_top_level_module_has_a_layer():

@@ -8,9 +8,10 @@ import pytest
 from mindgap import rng
 from mindgap.algorithms.gerel import GeReLConfig, RatingData, fit_gerel
 from mindgap.algorithms.gerel_model import believed_q_values, pathwise_elbo, score_gradient
+from mindgap.data.demos import RatedDemonstrations
 from mindgap.envs.coffee import factored_layout, make_coffee
 from mindgap.envs.grid import move_targets
-from mindgap.feedback.demos import RatedDemonstrations, random_demonstrations
+from mindgap.feedback.demos import random_demonstrations
 from mindgap.metrics import all_metrics
 from mindgap.models.belief import factored, per_state_action, tied
 from mindgap.planning import q_values

@@ -7,10 +7,10 @@ import pytest
 
 from mindgap import rng
 from mindgap.cli import main
+from mindgap.data.demos import RatedDemonstrations
 from mindgap.envs.coffee import TRUE_SPILL, CoffeeParams, coffee_transitions, make_coffee
 from mindgap.experiments import coffee
 from mindgap.experiments.coffee_report import correlation, two_sample
-from mindgap.feedback.demos import RatedDemonstrations
 from mindgap.teachers.rating import RatingTeacher
 from report_check import check_report
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from mindgap.feedback.demos import RatedDemonstrations, make_demonstrations
+from mindgap.data.demos import RatedDemonstrations, make_demonstrations
 from mindgap.feedback.normalise import normalise_ratings
 from mindgap.feedback.ratings_file import (
     ParticipantRatings,

@@ -5,10 +5,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from mindgap.design.terrain_check import check_world, evaluate, noise_field, person_score
 from mindgap.envs.terrain import NAMED_WORLDS, load_world, world_from_dict
 from mindgap.envs.terrain.dynamics import log_prob_pos
 from mindgap.planning.terrain import compass_actions, discretise, plan, plan_action, rollouts, route_stats
-from mindgap.planning.terrain_check import check_world, evaluate, noise_field, person_score
 from mindgap.teachers.preference import TeacherConfig
 
 CORRIDOR = {

@@ -2,7 +2,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mindgap import rng
-from mindgap.feedback.demos import Demonstrations, random_demonstrations
+from mindgap.data.demos import Demonstrations
+from mindgap.feedback.demos import random_demonstrations
 from mindgap.planning.grid_task import make_grid
 from mindgap.teachers.rating import RatingTeacher
 

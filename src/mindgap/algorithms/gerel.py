@@ -40,8 +40,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ..data.demos import RatedDemonstrations
 from ..envs.tabular import TabularMDP
-from ..feedback.demos import RatedDemonstrations
 from ..models import dirichlet
 from ..models.belief import BeliefSpace
 from ._restarts import RestartRun, run_restarts

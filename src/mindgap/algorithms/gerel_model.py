@@ -18,8 +18,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..data.demos import RatedDemonstrations
 from ..envs.tabular import TabularMDP
-from ..feedback.demos import RatedDemonstrations
 from ..models import dirichlet
 from ..models.belief import BeliefSpace
 from ..models.rating import censored_log_likelihood, mean_log_policy_from_counts

@@ -19,8 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from ..data.demos import Demonstrations
 from ..envs.tabular import TabularMDP
-from ..feedback.demos import Demonstrations
 from ._restarts import RestartRun, run_restarts
 
 

@@ -7,8 +7,8 @@ mindgap design check NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--segm
 Prints, for each world, the exact finite-horizon plans under r_H, under what an unaware
 learner learns and under an unbiased person, the per-step bias by terrain, each belief
 parameter's standard error at the budget, the identifiability conditions, and the verdict
-(:mod:`~mindgap.planning.design_check`). With ``--fit``, also a maximum-likelihood fit of the
-belief and a state-form reward to the budget's simulated answers (:mod:`~mindgap.planning.belief_fit`):
+(:mod:`~mindgap.design.design_check`). With ``--fit``, also a maximum-likelihood fit of the
+belief and a state-form reward to the budget's simulated answers (:mod:`~mindgap.design.belief_fit`):
 each estimate and its standard error beside the Fisher one, and the first biased parameter's
 profile log-likelihood; ``--precision`` makes the fit's learner predict the move mean with a
 smooth error of that RMS (cells), the precision a learned dynamics model reaches. ``--oracle RUN``
@@ -77,7 +77,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.design_command == "recovery":
         return _recovery(args)
-    from ..planning.design_check import DesignConfig, design_check, plan_policies, report
+    from ..design.design_check import DesignConfig, design_check, plan_policies, report
     from ..teachers.preference import TeacherConfig
 
     if args.budget < 1 or args.segment < 1 or args.resolution < 1:
@@ -202,7 +202,7 @@ def oracle_line(run: Path, world: str) -> tuple[str, dict | None]:
 
 def _fit(world, belief, cfg, fisher, planned, precision: float = 0.0) -> tuple[str, dict | None]:
     """The maximum-likelihood fit as text and as a plain record (None where it cannot run)."""
-    from ..planning.belief_fit import FLAT_NATS, NO_SCALE, Z_MARGIN, fit_world, verdict
+    from ..design.belief_fit import FLAT_NATS, NO_SCALE, Z_MARGIN, fit_world, verdict
 
     if cfg.teacher.beta is None:
         return f"maximum-likelihood fit: not run: {NO_SCALE}\n", None

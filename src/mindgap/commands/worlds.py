@@ -63,7 +63,7 @@ def _show(args) -> int:
     if args.belief is None:
         save_world(args.out, world.params, title=world.name)
     else:
-        from ..planning.terrain_check import noise_field
+        from ..design.terrain_check import noise_field
 
         bname = args.belief or None
         bparams = world.belief(bname)
@@ -97,8 +97,8 @@ def _plan(args) -> int:
     import jax
 
     from .._io import atomic_write
+    from ..design.terrain_check import check_world
     from ..envs.terrain import load_world
-    from ..planning.terrain_check import check_world
     from ..plotting.terrain import save_panels, save_rollout_gif
 
     if args.resolution < 1 or args.rollouts < 1:

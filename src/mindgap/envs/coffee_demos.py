@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..feedback.demos import Demonstrations, make_demonstrations
+from ..data.demos import Demonstrations, make_demonstrations
 from .coffee import (
     ACTIONS,
     BUY,

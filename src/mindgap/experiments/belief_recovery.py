@@ -1,7 +1,7 @@
 """Does PrefBias's inference recover the belief that the answers identify? ``mindgap design recovery``.
 
-The design check (:mod:`~mindgap.planning.design_check`) says whether a world's answers *could*
-identify the person's belief, and its tabular fit (:mod:`~mindgap.planning.belief_fit`) that an
+The design check (:mod:`~mindgap.design.design_check`) says whether a world's answers *could*
+identify the person's belief, and its tabular fit (:mod:`~mindgap.design.belief_fit`) that an
 ideal learner recovers it. This takes PrefBias's own inference out of its loop and asks the same
 of it, on the same answers:
 
@@ -37,13 +37,13 @@ from .. import rng
 from ..algorithms.prefbias_inference import PrefBiasConfig, bt_cross_entropy, fit, prefbias_init, preference_prob
 from ..data.prefs import PrefData
 from ..data.segments import Segments
+from ..design.belief_fit import fit_belief, person_step_score, simulate_queries
+from ..design.design_check import ACTIONS, DesignConfig, plan_policies
 from ..envs.terrain.dynamics import log_prob_pos, move_model, terrain_at
 from ..envs.terrain.layout import TERRAINS
 from ..models.bayes import sample_params
 from ..models.gaussian_dynamics import dynamics_init, fit_norm, train_dynamics
 from ..models.prefbias_nets import belief_predict, belief_stay_prob
-from ..planning.belief_fit import fit_belief, person_step_score, simulate_queries
-from ..planning.design_check import ACTIONS, DesignConfig, plan_policies
 from ..planning.terrain_maps import belief_stay_map, table_stay_map
 
 PERSONS = ("biased", "unbiased")

@@ -31,10 +31,10 @@ from tqdm.auto import tqdm
 from .. import rng
 from .._io import atomic_write
 from ..algorithms.gerel import GeReLConfig, fit_gerel
+from ..data.demos import Demonstrations, RatedDemonstrations
 from ..envs.coffee import ACTIONS, N_STATES, ROBOTS, event_probability, factored_layout, make_coffee
 from ..envs.coffee_demos import SANITY, Trace, study_traces, to_demonstrations, trace_text
 from ..envs.tabular import TabularMDP
-from ..feedback.demos import Demonstrations, RatedDemonstrations
 from ..feedback.normalise import normalise_ratings
 from ..feedback.ratings_file import ParticipantRatings, write_participant_ratings
 from ..models.belief import BeliefSpace, factored, per_state_action

@@ -18,9 +18,9 @@ import numpy as np
 from .. import rng
 from .._io import atomic_write
 from ..algorithms.gerel import GeReLConfig
+from ..data.demos import RatedDemonstrations
 from ..envs.coffee import ACTIONS, N_STATES, ROBOTS, make_coffee
 from ..envs.coffee_demos import SANITY
-from ..feedback.demos import RatedDemonstrations
 from ..feedback.ratings_file import ParticipantRatings, read_participant_ratings, write_participant_ratings
 from ..teachers.participants import POPULATIONS, QUESTIONS, recruit
 from . import coffee

@@ -25,7 +25,7 @@ vmapped or stepped in lockstep). A ``sac-level`` job per host domain trains SAC 
 *belief* env (the lander in a vacuum, the reliable hopper and cheetah) for
 :data:`LEVELS`' budget, to compare our SAC with the published level the issue asks for.
 
-There is no design check for these worlds: :mod:`~mindgap.planning.design_check` plans on a
+There is no design check for these worlds: :mod:`~mindgap.design.design_check` plans on a
 terrain map. The reference job measures instead which conditions of
 docs/experiments/identifiability.md the domain and its person meet
 (:func:`~.gym_measures.conditions`).

@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import rng
+from ..design.terrain_check import check_world
 from ..envs.gym_world import GymWorld
 from ..envs.interface import EnvError, check_env
 from ..envs.resolve import resolve_env
@@ -36,7 +37,6 @@ from ..envs.terrain.layout import GOAL, PIT, WALL
 from ..envs.terrain.params import TerrainState
 from ..envs.terrain.world import reward as true_reward
 from ..planning.terrain import compass_actions, rollouts, route_stats
-from ..planning.terrain_check import check_world
 
 REWARD_DRAWS = 32
 """Draws of the true next state per (state, action) for the expected true reward."""

@@ -41,8 +41,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._io import atomic_write
+from ..data.demos import RatedDemonstrations, make_demonstrations
 from ._errors import RatingsFileError
-from .demos import RatedDemonstrations, make_demonstrations
 
 REQUIRED = ("demo", "step", "state", "action", "rating")
 

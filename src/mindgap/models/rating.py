@@ -11,7 +11,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jax.scipy.special import log_ndtr
 
-from ..feedback.demos import Demonstrations
+from ..data.demos import Demonstrations
 
 
 def mean_log_policy(log_policy, demos: Demonstrations) -> jnp.ndarray:

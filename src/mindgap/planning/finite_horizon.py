@@ -1,6 +1,6 @@
 """Exact finite-horizon planning on a discretised terrain world, and what a policy earns there.
 
-The design check (:mod:`~mindgap.planning.design_check`) compares the policies that three
+The design check (:mod:`~mindgap.design.design_check`) compares the policies that three
 reward functions lead to: the person's r_H, what a learner that ignores the person's belief
 learns (r_H + E_T[log T_H]) and what it learns from an unbiased person (r_H + E_T[log T]).
 Each is planned exactly over the episode's horizon — backward induction on the sub-cell MDP

@@ -32,9 +32,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..data.demos import Demonstrations
 from ..envs.coffee import ROBOTS, CoffeeParams, coffee_transitions
 from ..envs.tabular import TabularMDP
-from ..feedback.demos import Demonstrations
 from .rating import RatingTeacher
 
 LIKERT = (1, 5)

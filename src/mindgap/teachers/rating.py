@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
+from ..data.demos import Demonstrations, RatedDemonstrations
 from ..envs.tabular import TabularMDP
-from ..feedback.demos import Demonstrations, RatedDemonstrations
 from ..models.rating import expected_rating
 from ..planning import boltzmann_policy
 

@@ -8,11 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.envs.terrain import world_from_dict
-from mindgap.envs.terrain.dynamics import log_prob_pos
-from mindgap.envs.terrain.layout import TERRAINS
-from mindgap.envs.terrain.world import potential
-from mindgap.planning.belief_fit import (
+from mindgap.design.belief_fit import (
     FLAT_NATS,
     Z_MARGIN,
     BeliefFit,
@@ -24,7 +20,11 @@ from mindgap.planning.belief_fit import (
     log_likelihood,
     verdict,
 )
-from mindgap.planning.design_check import DesignConfig
+from mindgap.design.design_check import DesignConfig
+from mindgap.envs.terrain import world_from_dict
+from mindgap.envs.terrain.dynamics import log_prob_pos
+from mindgap.envs.terrain.layout import TERRAINS
+from mindgap.envs.terrain.world import potential
 from mindgap.planning.identifiability import parameter_slots
 from mindgap.teachers.preference import TeacherConfig
 

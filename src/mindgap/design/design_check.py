@@ -32,10 +32,10 @@ import numpy as np
 from .. import rng
 from ..envs.terrain.dynamics import log_prob_pos, sample_next, terrain_at
 from ..envs.terrain.layout import GOAL, PIT, TERRAINS
+from ..planning.finite_horizon import Outcome, backward, forward
+from ..planning.identifiability import Parameter, belief_information
+from ..planning.terrain import Discretised, compass_actions, discretise
 from ..teachers.preference import TeacherConfig
-from .finite_horizon import Outcome, backward, forward
-from .identifiability import Parameter, belief_information
-from .terrain import Discretised, compass_actions, discretise
 
 UNAWARE_AT_MOST = 0.8
 """A valid world: the unaware learner's policy earns at most this share of the optimal-vs-random gap."""

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from mindgap.cli import main
+from mindgap.design.design_check import DesignConfig, design_check
 from mindgap.envs.terrain import world_from_dict
-from mindgap.planning.design_check import DesignConfig, design_check
 from mindgap.planning.finite_horizon import backward, forward
 from mindgap.planning.terrain import discretise
 from mindgap.teachers.preference import TeacherConfig

@@ -38,8 +38,8 @@ from ..envs.terrain.dynamics import log_prob_pos, terrain_at
 from ..envs.terrain.layout import FLOOR, GOAL, PIT, TERRAINS
 from ..envs.terrain.params import TerrainState
 from ..envs.terrain.world import potential, reward
+from ..planning.identifiability import _episodes, _get, _put, parameter_slots
 from .design_check import ACTIONS, DesignConfig, plan_policies
-from .identifiability import _episodes, _get, _put, parameter_slots
 
 Z_MARGIN = 3.0
 """Recovered: θ̂ within this many standard errors of the belief and at least this many from the truth, on

@@ -22,8 +22,8 @@ from ..envs.terrain.dynamics import move_model
 from ..envs.terrain.layout import WALL
 from ..envs.terrain.params import TerrainState
 from ..envs.terrain.world import TERRAIN_ENV, TerrainWorld, observe
+from ..planning.terrain import Plan, RouteStats, plan, plan_action, rollouts, route_stats
 from ..teachers.preference import TeacherConfig, segment_scores
-from .terrain import Plan, RouteStats, plan, plan_action, rollouts, route_stats
 
 
 class Expectation(NamedTuple):
