@@ -85,17 +85,25 @@ def _layer(name: str) -> str | None:
     return parts[1] if len(parts) > 1 and parts[0] == "mindgap" else None
 
 
-def upward_imports(root: Path) -> list[str]:
-    """``"module (layer -> higher layer)"`` for each import under ``root`` that goes up a layer."""
-    bad = set()
+def _layer_imports(root: Path):
+    """``(module, its layer, the layer it imports)`` for every import between layered packages under ``root``."""
     for module, path in _modules(root).items():
         me = _layer(module)
         if me not in RANK:
             continue
         for name in _imported(module, path):
             other = _layer(name)
-            if other in RANK and (RANK[other] > RANK[me] or {me, other} == {"models", "envs"}):
-                bad.add(f"{module} ({me} -> {other})")
+            if other in RANK:
+                yield module, me, other
+
+
+def upward_imports(root: Path) -> list[str]:
+    """``"module (layer -> higher layer)"`` for each import under ``root`` that goes up a layer."""
+    bad = {
+        f"{module} ({me} -> {other})"
+        for module, me, other in _layer_imports(root)
+        if RANK[other] > RANK[me] or {me, other} == {"models", "envs"}
+    }
     return sorted(bad)
 
 
@@ -103,14 +111,9 @@ def package_cycles(root: Path) -> list[str]:
     """``"a -> b -> … -> a"`` for each cycle among the top-level packages of ``root`` (one per set of
     packages that reach each other), imports inside functions included."""
     edges: dict[str, set[str]] = {}
-    for module, path in _modules(root).items():
-        me = _layer(module)
-        if me not in RANK:
-            continue
-        for name in _imported(module, path):
-            other = _layer(name)
-            if other in RANK and other != me:
-                edges.setdefault(me, set()).add(other)
+    for _, me, other in _layer_imports(root):
+        if other != me:
+            edges.setdefault(me, set()).add(other)
 
     def path_back(start: str, node: str, seen: tuple) -> tuple | None:
         for nxt in sorted(edges.get(node, ())):
