@@ -9,6 +9,7 @@ The ``slow`` tests run the real fast presets end to end.
 """
 
 import csv
+import dataclasses
 import json
 
 import jax
@@ -233,6 +234,26 @@ def test_required_route_on_hand_made_routes():
     assert not ec.required_route(d1, route, near)  # nearer the optimal berth than the person's
     assert ec.required_route(d1, route, {**near, "expected": None}) is None
     assert ec.required_route(load_world("nav1"), route, person) is None  # no eps_route there
+
+
+def test_eps_runs_a_coin_flip_control_and_states_its_claim():
+    from mindgap.experiments import eps_table
+
+    jobs = {j.key: j for j in eps_table.jobs(eps_table.preset("full"))}
+    coin, eps = jobs["d3/eps-lam2-coin"], jobs["d3/eps-lam2"]
+    assert coin.cfg.teacher.beta == 0.0 and dataclasses.replace(coin.cfg, teacher=eps.cfg.teacher) == eps.cfg
+    assert coin.tags["person"] == "coin" and not any("coin" in k for k in map(str, eps_table.jobs(eps_table.preset("fast"))))
+
+    def row(expl, std=2.0):
+        return {"explicability_mean": expl, "explicability_std": std, "seeds": 5, "label": "x", "required_route": 1.0}
+
+    def coin_claims(eps, coin):
+        claims = eps_table._claims(load_world("d3"), {"eps": row(eps), "eps-coin": row(coin)})
+        return {c["text"]: c["held"] for c in claims if "coin" in c["text"]}
+
+    text = "d3: EPS learns from the answers: more explicable than on coin-flip answers by ≥ 2 standard errors"
+    assert coin_claims(-10.0, -30.0) == {text: True}
+    assert coin_claims(-10.0, -12.0) == {text: False}  # within two standard errors (2.5)
 
 
 def test_a_seed_held_still_short_of_the_goal_is_counted():

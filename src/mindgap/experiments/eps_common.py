@@ -92,10 +92,13 @@ def sac_job(world: str, learn: EPSLearners) -> pc.Job:
 
 
 def eps_job(world: str, learn: EPSLearners, lam: float, person: str = "biased") -> pc.Job:
-    """EPS with reconciliation factor ``lam`` learning from a ``person`` (biased or unbiased)."""
+    """EPS with reconciliation factor ``lam`` learning from a ``person``: biased, unbiased, or ``coin``
+    (the biased person at β = 0, :func:`~.prefbias_common.coin_flips`: every answer a fair coin)."""
     name = f"eps-lam{lam:g}" + ("" if person == "biased" else f"-{person}")
-    label = "EPS" if person == "biased" else f"EPS ({person} person)"
+    label = {"biased": "EPS", "coin": "EPS (coin-flip answers)"}.get(person, f"EPS ({person} person)")
     cfg = dataclasses.replace(learn.eps, method="eps", lam=float(lam))
+    if person == "coin":
+        cfg = pc.coin_flips(cfg)
     return pc.Job(f"{world}/{name}", world, "eps", label, cfg, {"lam": float(lam), "person": person})
 
 

@@ -63,6 +63,9 @@ class EPSTableConfig:
     """EPS's λ in every world (the dissertation tunes it per domain in [2.0, 2.8])."""
     unbiased: bool = True
     """Also run EPS with an unbiased person (Fig. 29)."""
+    coin: bool = True
+    """Also run EPS on coin-flip answers: a learner that learns from the answers must be more
+    explicable on the person's than on a fair coin's."""
     seeds: int = 5
     learners: ec.EPSLearners = field(default_factory=lambda: ec.learners("full"))
 
@@ -72,7 +75,7 @@ def preset(name: str) -> EPSTableConfig:
     if name == "full":
         return EPSTableConfig()
     if name == "fast":
-        return EPSTableConfig(seeds=1, learners=ec.learners("fast"))
+        return EPSTableConfig(seeds=1, coin=False, learners=ec.learners("fast"))
     raise ValueError(f"unknown preset {name!r}: use 'fast' or 'full'")
 
 
@@ -84,6 +87,8 @@ def jobs(cfg: EPSTableConfig) -> list[pc.Job]:
         out.append(ec.eps_job(w, learn, cfg.lam))
         if cfg.unbiased:
             out += [ec.person_job(w, learn, "unbiased"), ec.eps_job(w, learn, cfg.lam, "unbiased")]
+        if cfg.coin:
+            out.append(ec.eps_job(w, learn, cfg.lam, "coin"))
     return out
 
 
@@ -97,12 +102,13 @@ def run(cfg: EPSTableConfig, out: Path, **kw) -> dict:
 
 
 def _learned(records: dict, spec: str) -> dict[str, dict]:
-    """A world's learner records by column name (eps, sac, drlhp, shaping, eps-unbiased)."""
+    """A world's learner records by column name (eps, sac, drlhp, shaping, eps-unbiased, eps-coin)."""
     out = {}
     for r in records.values():
         if r["world"] != spec or r["method"] == "person":
             continue
-        name = r["method"] if r["tags"].get("person") != "unbiased" else f"{r['method']}-unbiased"
+        person = r["tags"].get("person", "biased")
+        name = r["method"] if person == "biased" else f"{r['method']}-{person}"
         out[name] = r
     return out
 
@@ -236,6 +242,16 @@ def _claims(world, mine: dict[str, dict]) -> list[dict]:
     unb = mine.get("eps-unbiased")
     if unb is not None and sac is not None:
         out.append(_share_claim(world, "EPS (unbiased person)", unb, sac, UNBIASED_SHARE))
+    coin = mine.get("eps-coin")
+    if eps is not None and coin is not None:
+        se = np.sqrt(eps["explicability_std"] ** 2 / eps["seeds"] + coin["explicability_std"] ** 2 / coin["seeds"])
+        out.append(
+            pc.claim(
+                f"{world.name}: EPS learns from the answers: more explicable than on coin-flip answers by ≥ 2 standard errors",
+                eps["explicability_mean"] - coin["explicability_mean"] >= 2 * se,
+                f"{eps['explicability_mean']:.1f} vs {coin['explicability_mean']:.1f}",
+            )
+        )
     shaping = mine.get("shaping")
     if wm.expect(world).get("eps_route") == "ice" and eps is not None and shaping is not None:
         gap = eps["return_mean"] - shaping["return_mean"]
