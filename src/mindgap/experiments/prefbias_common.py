@@ -133,7 +133,11 @@ def reference_job(world: str, cfg: ReferenceConfig) -> Job:
 
 
 def prefbias_job(world: str, cfg: PrefBiasLoopConfig, label: str, name: str, **tags) -> Job:
-    """A PrefBias job; ``tags`` are the settings that distinguish it (for the CSV rows)."""
+    """A PrefBias job; ``tags`` are the settings that distinguish it (for the CSV rows). With
+    ``person="coin"`` its person answers by a fair coin (:func:`coin_flips`), so the tag and the
+    config cannot disagree."""
+    if tags.get("person") == "coin":
+        cfg = coin_flips(cfg)
     return Job(f"{world}/{name}", world, "prefbias", label, cfg, {"queries": cfg.queries, **tags})
 
 

@@ -86,7 +86,7 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
             out.append(pc.pebble_job(w, cfg.learners, cfg.pebble_queries, person="unbiased"))
         if cfg.coin:
             q = max(cfg.budgets)
-            pb = pc.coin_flips(replace(cfg.learners.prefbias, queries=q))
+            pb = replace(cfg.learners.prefbias, queries=q)
             out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries, coin-flip answers)", f"prefbias-q{q}-coin", person="coin"))
     return out
 
