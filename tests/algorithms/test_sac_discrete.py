@@ -82,6 +82,35 @@ def test_the_update_takes_expectations_over_actions_exactly(key):
     assert action_input(obs, 2) is obs  # a continuous action is itself
 
 
+def test_a_neutral_survival_entropy_charges_the_target_entropy_per_step(key):
+    """``survival_entropy="neutral"``: the soft value pays α·(H − H̄) a step instead of α·H, so the target
+    of a live step moves by exactly −γ α H̄ and a terminal step's not at all; ``paid`` is standard SAC. On a
+    tiny chain whose episodes can end early, the paid entropy makes every step alive worth ≈ α H̄ more."""
+    import dataclasses
+
+    from mindgap.algorithms.sac import SURVIVAL_ENTROPY
+
+    state = discrete_sac_init(key, 2, 3, CFG)
+    obs = jax.random.uniform(key, (4, 2))
+    terminal = jnp.array([0.0, 1.0, 0.0, 1.0])
+    batch = Batch(obs, jnp.array([[0.0], [1.0], [2.0], [1.0]]), jnp.ones(4), obs[::-1], terminal)
+    neutral = dataclasses.replace(CFG, survival_entropy="neutral")
+    y_paid = discrete_sac_losses(state.params, batch, CFG)[2]
+    y_neutral = discrete_sac_losses(state.params, batch, neutral)[2]
+    charge = CFG.gamma * float(jnp.exp(state.params.log_alpha)) * target_entropy(CFG, 3)
+    assert np.allclose(y_neutral - y_paid, -charge * (1.0 - terminal), atol=1e-6)
+    assert SURVIVAL_ENTROPY == ("paid", "neutral") and CFG.survival_entropy == "paid"
+    with pytest.raises(ValueError, match="survival_entropy"):
+        SACConfig(survival_entropy="bonus")
+    # the continuous SAC's target moves by −γ α H̄ too, H̄ = −dim(A) by default
+    from mindgap.algorithms.sac import sac_init, sac_losses
+
+    c_state = sac_init(key, 2, 1, CFG)
+    c_batch = Batch(obs, jnp.zeros((4, 1)), jnp.ones(4), obs[::-1], terminal)
+    diff = sac_losses(c_state.params, c_batch, key, neutral)[2] - sac_losses(c_state.params, c_batch, key, CFG)[2]
+    assert np.allclose(diff, CFG.gamma * float(jnp.exp(c_state.params.log_alpha)) * 1.0 * (1.0 - terminal), atol=1e-5)
+
+
 def _mlp(p, x):
     from mindgap.models.mlp import mlp
 

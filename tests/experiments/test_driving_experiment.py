@@ -24,6 +24,7 @@ from mindgap.cli import main
 from mindgap.envs.driving import STUDY_IMPORTANCE, importance_weights
 from mindgap.envs.driving.params import IDLE, LANE_LEFT, SLOWER
 from mindgap.experiments import driving
+from mindgap.experiments._runfolder import to_jsonable
 from mindgap.models.mlp import init_mlp
 from report_check import check_report
 
@@ -160,24 +161,31 @@ def test_presets_and_the_rerun_command():
     drawn = highway_version(busy, importance_weights(STUDY_IMPORTANCE))  # the figures' road: the same cars
     assert drawn.observation_space.shape == (driving.world_of(busy).env.observation_space.dim,)
     drawn.close()
-    decisions = dataclasses.replace(full, teacher=dataclasses.replace(full.teacher, use_belief=False))
-    assert registry.preset_of("driving", decisions) == "full"
-    assert (
-        registry.command("driving", decisions, "runs/d")
-        == "mindgap reproduce driving --answers-by decisions --out runs/d"
-    )
+    assert full.answers_by == "rollout" and full.rollout
+    for way in ("expectation", "decisions"):
+        other = dataclasses.replace(full, answers_by=way)
+        assert registry.preset_of("driving", other) == "full" and not other.rollout
+        assert registry.command("driving", other, "runs/d") == f"mindgap reproduce driving --answers-by {way} --out runs/d"
+    # a run folder from before the field: it answered by its states, log T_H left out when use_belief was off
+    old = json.loads(json.dumps(to_jsonable(full)))
+    del old["answers_by"]
+    old["teacher"]["use_belief"] = False
+    assert registry.command("driving", old, "runs/d").startswith("mindgap reproduce driving --answers-by decisions")
 
 
 def test_answers_by_decisions_reaches_the_participants(tmp_path, monkeypatch):
-    """``--answers-by decisions`` sets the participants' TeacherConfig (log π_H alone); only the driving study takes it."""
+    """``--answers-by decisions`` sets how the participants answer (log π_H alone); only the driving study takes it."""
     seen = []
     monkeypatch.setattr(driving, "run", lambda cfg, out, **kw: seen.append(cfg) or {"job": {}})
     assert main(["reproduce", "driving", "--fast", "--answers-by", "decisions", "--job", "driving/people"]) == 0
-    assert seen[0].teacher.use_belief is False and seen[0].teacher.beta == 1.0
+    assert seen[0].answers_by == "decisions" and seen[0].answer_cfg.use_belief is False
+    assert seen[0].answer_cfg.beta == 1.0 and not seen[0].rollout
     # and DRLHP and EPS hand it to the crowd: the engine has a person answer by the learner's teacher config
     learners = [job.cfg for job in driving.jobs(seen[0]) if job.method in ("drlhp", "eps")]
-    assert len(learners) == 2 and all(c.teacher == seen[0].teacher for c in learners)
+    assert len(learners) == 2 and all(c.teacher == seen[0].answer_cfg for c in learners)
     assert main(["reproduce", "eps", "--fast", "--answers-by", "decisions"]) == 2
+    with pytest.raises(SystemExit):  # argparse's one line
+        main(["reproduce", "driving", "--fast", "--answers-by", "states"])
 
 
 def test_workers_run_the_participants_first_and_the_testing_phase_last():
@@ -260,3 +268,26 @@ def test_the_preference_sanity_item_keeps_every_attentive_recruit(stand_ins, tmp
     # a run folder from before the option existed holds no ``sanity``: it was the expectation item
     plain = {k: v for k, v in registry._plain(driving.preset("full")).items() if k != "sanity"}
     assert "--sanity expectation" in registry.command("driving", plain, "runs/d")
+
+
+def test_the_participant_gates_read_what_the_participants_want_and_expect(stand_ins, tmp_path, capsys):
+    """``mindgap design driving --run DIR``: a braker's π_H (the stand-in of every dry-road believer) slows at
+    the onset and, playing the clips out in the dry road they believe in, finds braking in lane on sleet the
+    most expected of the five scripted responses; judged at the clips' own states (log T_H of each weak
+    braking step at its floor) it does not."""
+    out = tmp_path / "run"
+    assert main(["reproduce", "driving", "--fast", "--quiet", "--out", str(out), "--job", "driving/people"]) == 0
+    capsys.readouterr()
+    status = main(["design", "driving", "--run", str(out), "--episodes", "8"])
+    printed = capsys.readouterr().out
+    g = json.loads((out / "gates.json").read_text())
+    rows = json.loads((out / "jobs" / "driving__people.json").read_text())["participants"]
+    brakers = sum(1 for r in rows if not r["dropped"] and r["believed_sleet"] == 0.0)
+    assert g["answers_by"] == "rollout" and g["gates"]["slows_at_onset"]["value"] == brakers
+    assert g["gates"]["braking_most_expected_on_sleet"]["value"] == brakers
+    assert "slows_at_onset" in printed and status == (0 if all(v["holds"] for v in g["gates"].values()) else 1)
+    assert main(["design", "driving", "--run", str(out), "--episodes", "8", "--answers-by", "expectation"]) in (0, 1)
+    states = json.loads((out / "gates-expectation.json").read_text())
+    assert states["gates"]["braking_most_expected_on_sleet"]["value"] < brakers or brakers == 0
+    assert main(["design", "driving", "--run", str(tmp_path / "none")]) == 2
+    assert "no finished participants job" in capsys.readouterr().err

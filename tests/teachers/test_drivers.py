@@ -34,6 +34,11 @@ def _episode(action: int, key=0):
     return Segments(obs[:, :-1], act[None], obs[:, 1:], alive)
 
 
+def _frames(seg: Segments) -> jax.Array:
+    """A one-episode segment's observations with the last one: [1, T+1, d]."""
+    return jnp.concatenate([seg.obs, seg.next_obs[:, -1:]], 1)
+
+
 def test_recruits_answer_around_the_study_with_spread_and_the_availability_bias():
     pop = dv.DriverPopulation()
     people = [dv.sample_driver(jax.random.fold_in(rng.key(1), i), pop, f"p{i}", 1.0) for i in range(300)]
@@ -88,11 +93,13 @@ def test_sanity_bias_question_and_ratings(key):
     assert not dv.sanity_fails(key, -40.0, -5.0, True, cfg)  # the collision is far less expected
     assert dv.bias_answer(key, 0.0, True, WORLD.params) and not dv.bias_answer(key, 1.0, True, WORLD.params)
     steer, brake = _episode(LANE_LEFT), _episode(SLOWER)
-    obs = jnp.concatenate([steer.obs, brake.obs])
+    obs = jnp.concatenate([_frames(steer), _frames(brake)])
     act = jnp.concatenate([steer.act, brake.act])
     alive = jnp.concatenate([steer.mask, brake.mask])
     r = dv.rate_rollouts(key, _actor(SLOWER), True, obs, act, alive, noise=0.0)
     assert r[1] > r[0] and set(r) <= set(range(1, 11))
+    played = dv.rate_rollouts(key, _actor(SLOWER), True, obs, act, alive, noise=0.0, belief=WORLD.params.with_sleet(0.0))
+    assert np.array_equal(played, r)  # a π_H that ignores the state rates the played-out decisions alike
     assert dv.rating_fails(np.array([5.0, 1.0, 7.0]), sanity=1) == ""
     assert "sanity" in dv.rating_fails(np.array([5.0, 6.0, 7.0]), sanity=1)
     assert "same rating" in dv.rating_fails(np.array([4.0, 4.0]), sanity=0)

@@ -124,6 +124,8 @@ class Schedule:
         d = dataclasses.asdict(self)
         if self.queries_from == "anywhere":  # recorded only when set, so earlier run folders still resume
             del d["queries_from"]
+        if d.get("sac", {}).get("survival_entropy") == "paid":  # the same, for SAC's survival_entropy
+            del d["sac"]["survival_entropy"]
         return d
 
 

@@ -80,6 +80,14 @@ class SACConfig:
     0 switches it off."""
     entropy_bonus_halflife: int = 10_000
     """Environment steps over which the state-entropy bonus's weight halves."""
+    survival_entropy: str = "paid"
+    """What the soft value pays per step for the policy's entropy. ``paid`` (standard SAC): α·H(π(·|s'))
+    in every step the episode lasts, so an episode that terminates early forgoes the entropy of all
+    its later steps — the entropy term is an alive bonus, worth about α·H̄ a step to any policy
+    that avoids ending its episode. ``neutral``: α·(H − H̄), the entropy above the target H̄ of the
+    tuned α (:func:`entropy_target`), so that surviving a step is worth nothing on average and
+    *when* an episode ends is decided by the reward (docs/experiments/driving.md, "The learners
+    follow the answers"). A constant per step: where episodes never terminate it changes nothing."""
 
     def __post_init__(self):
         if self.noise_color < 0:
@@ -88,9 +96,17 @@ class SACConfig:
             raise ValueError("SAC entropy_bonus must be non-negative and its half-life at least 1 step")
         if self.noise_length < 2:
             raise ValueError(f"SAC noise_length must be at least 2, got {self.noise_length}")
+        if self.survival_entropy not in SURVIVAL_ENTROPY:
+            raise ValueError(
+                f"SAC survival_entropy must be one of {', '.join(SURVIVAL_ENTROPY)}, got {self.survival_entropy!r}"
+            )
         for name in ("utd", "batch_size", "n_step"):
             if getattr(self, name) < 1:
                 raise ValueError(f"SAC {name} must be at least 1, got {getattr(self, name)}")
+
+
+SURVIVAL_ENTROPY = ("paid", "neutral")
+"""The values of :attr:`SACConfig.survival_entropy`."""
 
 
 class SACParams(NamedTuple):
@@ -135,6 +151,7 @@ def sac_losses(params: SACParams, batch: Batch, key: jax.Array, cfg: SACConfig):
     alpha = jnp.exp(params.log_alpha)
     a_next, logp_next = sample_action(params.actor, batch.next_obs, k_next)
     q_next = jnp.min(q_values(params.target, batch.next_obs, a_next), axis=0) - alpha * logp_next
+    q_next = q_next - survival_charge(alpha, entropy_target(cfg, batch.act.shape[-1]), cfg)
     discount = cfg.gamma if batch.discount is None else batch.discount
     y = jax.lax.stop_gradient(cfg.reward_scale * batch.reward + discount * (1.0 - batch.terminal) * q_next)
 
@@ -157,8 +174,17 @@ def sac_update(state: SACState, batch: Batch, key: jax.Array, cfg: SACConfig):
         (new state, metrics dict of scalars).
     """
     critic_loss, actor_loss, _ = sac_losses(state.params, batch, key, cfg)
-    entropy = -batch.act.shape[-1] if cfg.target_entropy is None else cfg.target_entropy
-    return apply_update(state, critic_loss, actor_loss, entropy, cfg)
+    return apply_update(state, critic_loss, actor_loss, entropy_target(cfg, batch.act.shape[-1]), cfg)
+
+
+def entropy_target(cfg: SACConfig, act_dim: int) -> float:
+    """H̄, the entropy the tuned α aims for: ``cfg.target_entropy``, or −dim(A) (the usual choice)."""
+    return -act_dim if cfg.target_entropy is None else cfg.target_entropy
+
+
+def survival_charge(alpha: jax.Array, target: float, cfg: SACConfig) -> jax.Array:
+    """What the soft value subtracts per step for ``cfg.survival_entropy``: 0 (``paid``) or α·H̄ (``neutral``)."""
+    return alpha * target if cfg.survival_entropy == "neutral" else jnp.zeros_like(alpha)
 
 
 def apply_update(state: SACState, critic_loss, actor_loss, target_entropy: float, cfg: SACConfig):

@@ -36,7 +36,7 @@ import optax
 from ..data.batch import Batch
 from ..models.categorical import logits
 from ..models.mlp import Params, init_mlp, init_stack, mlp
-from .sac import SACConfig, SACParams, SACState, apply_update
+from .sac import SACConfig, SACParams, SACState, apply_update, survival_charge
 
 TARGET_ENTROPY_SHARE = 0.5
 """H̄ = this · log n when ``SACConfig.target_entropy`` is None (module docstring)."""
@@ -74,6 +74,7 @@ def discrete_sac_losses(params: SACParams, batch: Batch, cfg: SACConfig):
     alpha = jnp.exp(params.log_alpha)
     lp_next = logits(params.actor, batch.next_obs)
     v_next = jnp.sum(jnp.exp(lp_next) * (jnp.min(all_q(params.target, batch.next_obs), 0) - alpha * lp_next), -1)
+    v_next = v_next - survival_charge(alpha, target_entropy(cfg, lp_next.shape[-1]), cfg)
     discount = cfg.gamma if batch.discount is None else batch.discount
     y = jax.lax.stop_gradient(cfg.reward_scale * batch.reward + discount * (1.0 - batch.terminal) * v_next)
 

@@ -21,6 +21,14 @@ mindgap design recovery NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--u
 
 Fits PrefBias's inference alone to simulated answers and reports, by terrain, the learned belief
 against the person's on held-out true transitions (:mod:`~mindgap.experiments.belief_recovery`).
+
+mindgap design driving --run DIR [--episodes N] [--answers-by rollout|expectation|decisions] [--seed S]
+
+The driving study's participant gates on a run's participants, before any learner
+(:mod:`~mindgap.experiments.driving_probes`): which scripted response each participant wants and
+finds most expected, how their π_H meets the front car's braking, the bias and sanity counts and
+where the sanity collision ranks. Writes ``DIR/gates.json`` (``gates-WAY.json`` with
+``--answers-by``); the exit status is 0 when every gate holds, 1 when one fails.
 """
 
 from __future__ import annotations
@@ -72,11 +80,23 @@ def add_parser(sub) -> None:
     r.add_argument("--no-tabular", action="store_true", help="skip the tabular maximum-likelihood reference")
     r.add_argument("--seed", type=int, default=0, help="random seed")
     r.add_argument("--out", type=Path, help="folder for WORLD-recovery.txt, .json and .png (the stay maps)")
+    v = dsub.add_parser(
+        "driving", help="the driving study's participant gates, before any learner (docs/experiments/driving.md)"
+    )
+    v.add_argument("--run", type=Path, required=True, help="a driving run folder with a finished driving/people job")
+    v.add_argument("--episodes", type=int, default=200, help="episodes per scripted policy and road (default 200)")
+    v.add_argument(
+        "--answers-by", choices=("rollout", "expectation", "decisions"),
+        help="how the participants judge a clip (default: as the run has them)",
+    )  # fmt: skip
+    v.add_argument("--seed", type=int, default=0, help="random seed of the episodes")
 
 
 def run(args: argparse.Namespace) -> int:
     if args.design_command == "recovery":
         return _recovery(args)
+    if args.design_command == "driving":
+        return _driving(args)
     from ..design.design_check import DesignConfig, design_check, plan_policies, report
     from ..teachers.preference import TeacherConfig
 
@@ -115,6 +135,21 @@ def run(args: argparse.Namespace) -> int:
             atomic_write(args.out / f"{world.name}.txt", text)
             atomic_write(args.out / f"{world.name}.json", json.dumps(record, indent=2))
     return 0 if valid else 1
+
+
+def _driving(args) -> int:
+    """Print the participant gates of a driving run and write them to its ``gates.json``; 1 when one fails."""
+    from .._io import atomic_write
+    from ..experiments import driving_probes as probes
+
+    if args.episodes < 1:
+        raise ValueError("--episodes must be at least 1")
+    people = probes.load_participants(args.run, args.answers_by)
+    g = probes.gates(people, args.episodes, args.seed)
+    print(probes.report(g))
+    name = "gates.json" if args.answers_by is None else f"gates-{args.answers_by}.json"
+    atomic_write(args.run / name, json.dumps(g, indent=2))
+    return 0 if all(v["holds"] for v in g["gates"].values()) else 1
 
 
 def _terrain_worlds(specs, belief):

@@ -74,6 +74,12 @@ class DrivingConfig:
     attentive recruits who expect steering, docs/experiments/driving.md)."""
     importance: tuple[float, ...] = STUDY_IMPORTANCE
     """The population's mean importance answers (Fig. 32's averages)."""
+    answers_by: str = "rollout"
+    """How a participant judges which clip is more expected (queries, the sanity item asked as an
+    expectation, the testing phase's ratings): ``rollout`` (the clip's decisions played out in the world
+    they believe in, :mod:`~mindgap.teachers.believed_rollout`; docs/domains/driving.md), ``expectation``
+    (Σ [log T_H + log π_H] at the clip's own states, the identifiable protocol) or ``decisions``
+    (log π_H at the clip's own states alone)."""
     seeds: int = 5
     participants: int = 14
     """Valid participants of the training phase (14 in the study)."""
@@ -99,6 +105,8 @@ class DrivingConfig:
         dv.check_sleet_level(self.sleet)
         if self.sanity not in ("expectation", "preference"):
             raise ValueError(f"sanity must be 'expectation' or 'preference', got {self.sanity!r}")
+        if self.answers_by not in ANSWERS_BY:
+            raise ValueError(f"answers_by must be one of {', '.join(ANSWERS_BY)}, got {self.answers_by!r}")
         if not 0 <= self.traffic <= 4:
             raise ValueError(f"traffic must be in 0 … 4 (two cars in each of the other two lanes), got {self.traffic}")
         importance_weights(self.importance)  # one line for a rating outside [1, 5]
@@ -109,11 +117,29 @@ class DrivingConfig:
             raise ValueError("shown must not exceed rollouts")
 
 
+    @property
+    def answer_cfg(self) -> TeacherConfig:
+        """How the participants answer, as the learners' ``teacher`` config: ``decisions`` leaves log T_H out."""
+        return dataclasses.replace(self.teacher, use_belief=self.answers_by != "decisions")
+
+    @property
+    def rollout(self) -> bool:
+        """Whether the participants play a clip's decisions out in their believed world."""
+        return self.answers_by == "rollout"
+
+
+ANSWERS_BY = ("rollout", "expectation", "decisions")
+"""The ways a participant judges a clip (:attr:`DrivingConfig.answers_by`)."""
+
+
 def _eps(preset: str) -> EPSConfig:
-    """EPS on the driving world: the preset's schedule with 5-step segments (a third of an episode)."""
+    """EPS on the driving world: the preset's schedule with queries of 10 decisions from episodes' starts,
+    the response to the front car's braking as the study's hand-picked clips showed it (§4.4.2, Fig. 33)."""
     if preset == "full":
-        return eps_config("full", total_steps=30_000, queries=400, per_round=40, segment=5, lam=2.0)
-    return eps_config("fast", segment=5, lam=2.0)
+        return eps_config(
+            "full", total_steps=30_000, queries=400, per_round=40, segment=10, queries_from="start", lam=2.0
+        )
+    return eps_config("fast", segment=10, queries_from="start", lam=2.0)
 
 
 def preset(name: str) -> DrivingConfig:
@@ -143,7 +169,7 @@ def jobs(cfg: DrivingConfig) -> list[pc.Job]:
     out = [pc.Job(f"{WORLD}/people", WORLD, "people", "participants", cfg.population, {})]
     out.append(pc.Job(f"{WORLD}/sac", WORLD, "sac", "SAC", sac, {}))
     for method, label, tags in (("drlhp", "DRLHP", {}), ("eps", "EPS", {"lam": cfg.eps.lam})):
-        learner = dataclasses.replace(cfg.eps, method=method, teacher=cfg.teacher)
+        learner = dataclasses.replace(cfg.eps, method=method, teacher=cfg.answer_cfg)
         out.append(pc.Job(f"{WORLD}/{method}", WORLD, method, label, learner, tags))
     out.append(pc.Job(f"{WORLD}/testing", WORLD, "testing", "testing phase", cfg.raters, {}))
     return out
@@ -294,8 +320,7 @@ def people_record(folder: RunFolder, cfg: DrivingConfig) -> dict:
                 sc = [float(dv.reward_sums(s, reward)[0]) for s in same_moments]
             else:
                 actor = jax.tree.map(lambda a: a[i], actors)
-                teacher = dv.ExpectationTeacher(belief_params(probe, d), actor, probe.env)
-                sc = [float(dv.per_step_scores(s, teacher, cfg.teacher)[0]) for s in items]
+                sc = [float(clip_per_step(cfg, s, actor, belief_params(probe, d), probe.env)[0]) for s in items]
             fails = dv.sanity_fails(jax.random.fold_in(key, i), sc[0], sc[1], d.attentive, cfg.teacher)
             chose = "preferred" if cfg.sanity == "preference" else "more expected"
             whys.append(f"failed the sanity check (the collision {chose})" if fails else "")
@@ -396,7 +421,14 @@ def crowd_teacher(folder: RunFolder, cfg: DrivingConfig, world, people: dict) ->
     valid, actors = load_people(folder, world, people, cfg)
     beliefs = jax.tree.map(lambda *xs: jnp.stack(xs), *[belief_params(world, d) for d in valid])
     attentive = jnp.asarray([d.attentive for d in valid])
-    return dv.CrowdTeacher(beliefs, actors, attentive, world.env, cfg.teacher)
+    return dv.CrowdTeacher(beliefs, actors, attentive, world.env, cfg.answer_cfg, rollout=cfg.rollout)
+
+
+def clip_per_step(cfg: DrivingConfig, seg: Segments, actor, belief, env) -> jax.Array:
+    """How expected each clip looks per decision to one participant, as ``cfg.answers_by`` has them judge: [K]."""
+    if cfg.rollout:
+        return dv.believed_per_step(seg, actor, belief, cfg.answer_cfg)
+    return dv.per_step_scores(seg, dv.ExpectationTeacher(belief, actor, env), cfg.answer_cfg)
 
 
 def expected_behaviour(world, drivers, actors) -> dict[str, list]:
@@ -490,14 +522,14 @@ def testing_record(folder: RunFolder, cfg: DrivingConfig, world, people: dict) -
         for s in range(rec["seeds"]):
             actor = jax.tree.map(lambda a, s=s: a[s], actors)
             obs, act, alive, rew = greedy_episodes(world, actor, rng.key(20_000 + s), cfg.shown)
-            shown.append((obs[:, :-1], act, alive))
+            shown.append((obs, act, alive))
             index += [(m, s, e) for e in range(cfg.shown)]
             records += [
                 rollout_record(f"{m}-s{s}-e{e}", m, s, e, obs[e], act[e], alive[e], float(np.asarray(rew[e]).sum()))
                 for e in range(cfg.shown)
             ]
     (c_obs, c_act, c_alive), _ = sanity_segments(world, world.horizon)
-    shown.append((c_obs[None, :-1], c_act[None], c_alive[None]))
+    shown.append((c_obs[None], c_act[None], c_alive[None]))
     index.append(("sanity", -1, 0))
     records.append(rollout_record("sanity", "sanity", -1, 0, c_obs, c_act, c_alive, sanity="lowest"))
     # the same episodes for people to rate (mindgap study, items: {source: file, path: rollouts.json})
@@ -510,9 +542,11 @@ def testing_record(folder: RunFolder, cfg: DrivingConfig, world, people: dict) -
         whys = []
         for i, d in enumerate(batch):
             actor = jax.tree.map(lambda a: a[i], actors)
+            belief = belief_params(world, d) if cfg.rollout else None
             r = dv.rate_rollouts(
-                jax.random.fold_in(key, i), actor, d.attentive, obs, act, alive, cfg.population.rating_noise
-            )
+                jax.random.fold_in(key, i), actor, d.attentive, obs, act, alive, cfg.population.rating_noise,
+                belief=belief, cfg=cfg.answer_cfg,
+            )  # fmt: skip
             ratings[d.pid] = r
             whys.append(dv.rating_fails(r, sanity))
         return whys

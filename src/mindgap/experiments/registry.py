@@ -34,7 +34,7 @@ NAMES = tuple(MODULES)
 _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
-    "driving": ("seeds", "sleet", "traffic", "sanity", "importance"),
+    "driving": ("seeds", "sleet", "traffic", "sanity", "importance", "answers_by"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -105,8 +105,6 @@ def options(name: str) -> tuple[str, ...]:
 def preset_of(name: str, config) -> str:
     """``full``, ``fast`` or ``custom``: which preset ``config`` (a dataclass or its JSON) is."""
     cfg = _plain(config)
-    if name == "driving" and isinstance(cfg.get("teacher"), dict):
-        cfg["teacher"] = {**cfg["teacher"], "use_belief": True}  # --answers-by decisions sets it False
     for preset in ("full", "fast"):
         if same_config(cfg, module(name).preset(preset), ignore=options(name)):
             return preset
@@ -137,8 +135,8 @@ def command(name: str, config, out: str | Path) -> str:
         words += ["--sanity", str(cfg.get("sanity", "expectation"))]
     if name == "driving" and cfg.get("importance") != ref.get("importance"):
         words += ["--importance", ",".join(f"{v:g}" for v in cfg["importance"])]
-    if name == "driving" and not (cfg.get("teacher") or {}).get("use_belief", True):
-        words += ["--answers-by", "decisions"]
+    if name == "driving" and _answers_by(cfg) != ref.get("answers_by"):
+        words += ["--answers-by", _answers_by(cfg)]
     worlds = cfg.get("worlds")
     if "worlds" in options(name) and worlds is not None and list(worlds) != list(ref.get("worlds") or []):
         if any("," in w for w in worlds):
@@ -149,6 +147,14 @@ def command(name: str, config, out: str | Path) -> str:
     words += ["--out", str(out)]
     line = shlex.join(words)
     return line if preset != "custom" else line + "  # nearest preset: this folder's config.json differs"
+
+
+def _answers_by(cfg: dict) -> str:
+    """A driving run's ``answers_by``; a run from before the field answered by its states, log T_H left
+    out when its teacher's ``use_belief`` was off (``--answers-by decisions`` then)."""
+    if "answers_by" in cfg:
+        return cfg["answers_by"]
+    return "expectation" if (cfg.get("teacher") or {}).get("use_belief", True) else "decisions"
 
 
 def _plain(config) -> dict:

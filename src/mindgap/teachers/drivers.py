@@ -14,18 +14,28 @@ A participant of the training phase
 * **expects** the agent to act by π_H, soft-optimal for their reward r_H under their belief
   (discrete SAC in the world as they imagine it; trained by the experiment,
   :mod:`~mindgap.experiments.driving`), and **answers expectation queries** by Bradley–Terry
-  on Σ_t [log T_H + log π_H] — the identifiable protocol (docs/experiments/identifiability.md),
-  exactly :mod:`~mindgap.teachers.expectation`'s person (:class:`CrowdTeacher` asks one
-  participant per query).
+  on how expected the clip's *decisions* look when the participant plays them out in the world
+  they believe in (``rollout=True``, the study's default:
+  :mod:`~mindgap.teachers.believed_rollout`), or on Σ_t [log T_H + log π_H] at the clip's own
+  states — the identifiable protocol (docs/experiments/identifiability.md), exactly
+  :mod:`~mindgap.teachers.expectation`'s person — kept as an option (:class:`CrowdTeacher`
+  asks one participant per query).
 
-The participants' reward r_H (:func:`participant_reward`) reads Fig. 32's fourth question as
-it was put to them, "how important is **staying on the same lane**": a feature that is 1 in
-the lane the car started in and falls to 0 one lane away. The engineered r_A keeps the
-scenario's "lane following" (the offset from the nearest lane's centre, the text's name for
+The participants' reward r_H (:func:`participant_reward`) reads two of Fig. 32's questions as
+they were put to them. The fourth, "how important is **staying on the same lane**": a feature
+that is 1 in the lane the car started in and falls to 0 one lane away. The engineered r_A keeps
+the scenario's "lane following" (the offset from the nearest lane's centre, the text's name for
 the factor). The difference is the study's own finding (§4.4.2.1): the importance ratings,
 as engineered into r_A, "should have led to preferring the steering behavior", yet the
 participants expected braking. With r_A's lane following in r_H a person on a dry road would
 expect a lane change (measured: docs/experiments/driving.md), which the study did not see.
+The second, "**distance with front car**", reads as the distance to the blue car the clips show
+(Fig. 33 shows exactly one other car; :func:`distance_to_front_car`), whatever lane the car is
+in, rather than r_A's gap to whichever car is ahead in the ego's lane, which jumps to its best
+the moment the car leaves the lane. This reading is chosen to agree with a fact about the
+study's *training participants* — they "preferred to brake than steer in general"
+(§4.4.2.1) — and not with any learner's result; its effect on the scripted policies is measured
+in docs/experiments/driving.md.
 
 **Inattentive** recruits (``inattentive``) answer every question at random. The sanity
 item of the study is a collision shown against a car that brakes in time (:func:`sanity_fails`):
@@ -37,9 +47,12 @@ attentive recruits fail (measured: docs/experiments/driving.md).
 
 **Testing phase** (:func:`rate_rollouts`): *new* participants, drawn the same way, rate each
 rollout 1–10 by how expected it looks — the rating model of §2.2.1 on the study's 1–10
-scale: ``1 + 9 · (Π_t π_H(a_t|s_t))^{1/n}`` plus normal noise (``rating_noise``), rounded
+scale: ``1 + 9 · (Π_t π_H(a_t|ŝ_t))^{1/n}`` plus normal noise (``rating_noise``), rounded
 and clipped; an inattentive rater rates uniformly at random. The rating is of the car's
-decisions (the geometric mean probability π_H gives them), not of how the road responded.
+decisions (the geometric mean probability π_H gives them), played out in the rater's believed
+world with a crash they did not expect charged as in their answers
+(:mod:`~mindgap.teachers.believed_rollout`), or at the rollout's own states (ŝ_t = s_t) when
+the study answers by states.
 """
 
 from __future__ import annotations
@@ -54,13 +67,14 @@ import numpy as np
 
 from ..data.segments import Segments
 from ..envs.driving import FEATURES, STUDY_IMPORTANCE, importance_weights
-from ..envs.driving.params import LANE_WIDTH, DrivingParams
+from ..envs.driving.params import LANE_WIDTH, LENGTH, DrivingParams
 from ..envs.driving.reward import combine, features
 from ..envs.driving.sleet import braked_speed, log_prob_speed
 from ..envs.driving.world import decode
 from ..envs.interface import Env
 from ..models.categorical import categorical_log_prob
 from ..models.mlp import Params
+from .believed_rollout import believed_per_step, believed_scores
 from .expectation import ExpectationTeacher, segment_scores
 from .preference import TeacherConfig, labels_from_scores
 
@@ -167,10 +181,21 @@ def stay_in_lane(y, start_lane) -> jax.Array:
     return 1.0 - jnp.clip(jnp.abs(y - LANE_WIDTH * start_lane.astype(jnp.float32)) / LANE_WIDTH, 0.0, 1.0)
 
 
+def distance_to_front_car(n: dict, rw) -> jax.Array:
+    """Fig. 32's "distance with front car" read as the distance to *the* front car, the blue car of
+    Fig. 33, in whatever lane either is: its bumper gap over the desired gap (r_A's scale), clipped to
+    [0, 1]; 0 while beside it; 1 once it is behind. ``n`` is :func:`~mindgap.envs.driving.world.decode`'s."""
+    dx = n["others_dx"][0]
+    desired = rw.standstill + rw.headway * jnp.maximum(n["speed"], 0.0)
+    return jnp.where(dx > 0, jnp.clip((dx - LENGTH) / desired, 0.0, 1.0), 1.0)
+
+
 def participant_features(next_obs: jax.Array, params: DrivingParams) -> jax.Array:
-    """[4] the features a participant rates a step by: r_A's first three and :func:`stay_in_lane`."""
+    """[4] the features a participant rates a step by: r_A's speed and relative speed,
+    :func:`distance_to_front_car` and :func:`stay_in_lane` (module docstring)."""
     n = decode(next_obs, params)
     phi = features(n["y"], n["heading"], n["speed"], n["others_dx"], n["others_y"], n["others_speed"], params.rewards)
+    phi = phi.at[1].set(distance_to_front_car(n, params.rewards))
     return phi.at[3].set(stay_in_lane(n["y"], params.start_lane))
 
 
@@ -190,15 +215,16 @@ def participant_reward(p: RewardH, obs: jax.Array, act: jax.Array, next_obs: jax
 # answering queries
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["beliefs", "policies", "attentive"], meta_fields=["env", "cfg"])
+@partial(jax.tree_util.register_dataclass, data_fields=["beliefs", "policies", "attentive"], meta_fields=["env", "cfg", "rollout"])
 @dataclasses.dataclass(frozen=True)
 class CrowdTeacher:
     """The valid participants of the training phase as one jittable teacher.
 
-    Each query goes to one participant drawn uniformly; an attentive one answers as
-    :class:`~mindgap.teachers.expectation.ExpectationTeacher` (Bradley–Terry on Σ log T_H +
-    log π_H under their own belief and π_H), an inattentive one (who passed the sanity
-    item by luck) at random.
+    Each query goes to one participant drawn uniformly; an attentive one answers by
+    Bradley–Terry on their score of the two clips — with ``rollout``, the clip's decisions played
+    out in their believed world (:mod:`~mindgap.teachers.believed_rollout`), else as
+    :class:`~mindgap.teachers.expectation.ExpectationTeacher` (Σ log T_H + log π_H under their
+    own belief and π_H) — and an inattentive one (who passed the sanity item by luck) at random.
 
     Attributes:
         beliefs: the world's params under each participant's belief (leading axis P).
@@ -213,6 +239,10 @@ class CrowdTeacher:
     attentive: jax.Array
     env: Env
     cfg: TeacherConfig = TeacherConfig()
+    rollout: bool = False
+    """Score a clip by its decisions played out in the believed world
+    (:func:`~mindgap.teachers.believed_rollout.believed_scores`) instead of Σ log T_H + log π_H
+    at its own states."""
 
     @property
     def size(self) -> int:
@@ -222,6 +252,8 @@ class CrowdTeacher:
         """Every participant's score of each segment: [P, K]."""
 
         def one(belief, policy):
+            if self.rollout:
+                return believed_scores(seg, policy, belief, self.cfg)
             return segment_scores(seg, ExpectationTeacher(belief, policy, self.env), self.cfg)
 
         return jax.vmap(one)(self.beliefs, self.policies)
@@ -291,13 +323,23 @@ def expectedness(policy: Params, obs: jax.Array, act: jax.Array, alive: jax.Arra
     return jnp.exp(jnp.sum(jnp.where(alive, lp, 0.0)) / n)
 
 
-def rate_rollouts(key, policy: Params, attentive: bool, obs, act, alive, noise: float) -> np.ndarray:
-    """One rater's 1–10 ratings of rollouts ``obs [R, T, d]``, ``act [R, T, 1]``, ``alive [R, T]`` (module docstring)."""
+def rate_rollouts(
+    key, policy: Params, attentive: bool, obs, act, alive, noise: float, belief=None, cfg: TeacherConfig = TeacherConfig()
+) -> np.ndarray:
+    """One rater's 1–10 ratings of rollouts ``obs [R, T+1, d]``, ``act [R, T, 1]``, ``alive [R, T]`` (module docstring).
+
+    With ``belief`` (the world's params as the rater believes it) the decisions are played out in
+    that world, exp(S_i / n) of :mod:`~mindgap.teachers.believed_rollout`, so a crash the rater did
+    not expect rates lowest; without, the geometric mean of π_H at the rollout's own states."""
     k_noise, k_rand = jax.random.split(key)
     r = obs.shape[0]
     if not attentive:
         return np.asarray(jax.random.randint(k_rand, (r,), RATING[0], RATING[1] + 1), np.float64)
-    e = jax.vmap(lambda o, a, m: expectedness(policy, o, a, m))(obs, act, alive)
+    if belief is not None:
+        seg = Segments(obs[:, :-1], act, obs[:, 1:], alive.astype(jnp.float32))
+        e = jnp.exp(believed_per_step(seg, policy, belief, cfg))
+    else:
+        e = jax.vmap(lambda o, a, m: expectedness(policy, o, a, m))(obs[:, :-1], act, alive)
     mean = RATING[0] + (RATING[1] - RATING[0]) * e
     noisy = mean + noise * jax.random.normal(k_noise, (r,))
     return np.clip(np.round(np.asarray(noisy, np.float64)), *RATING)

@@ -194,6 +194,33 @@ def decode(obs: jax.Array, params: DrivingParams) -> dict:
     }
 
 
+def state_from_obs(obs: jax.Array, params: DrivingParams) -> DrivingState:
+    """The state an observation shows, with the ego at ``x = 0`` (only distances to it are observed).
+
+    :func:`observe` of the result equals ``obs`` to float32 rounding: every part of the state that
+    moves the scenario is in the observation (a person can roll a clip forward from its first frame,
+    :mod:`~mindgap.teachers.believed_rollout`).
+    """
+    n = decode(obs, params)
+    f32 = jnp.float32
+    t = n["t"]
+    return DrivingState(
+        x=jnp.zeros((), f32),
+        y=n["y"].astype(f32),
+        heading=n["heading"].astype(f32),
+        speed=n["speed"].astype(f32),
+        target_lane=n["target_lane"],
+        target_speed=n["target_speed"].astype(f32),
+        others_x=n["others_dx"].astype(f32),
+        others_y=n["others_y"].astype(f32),
+        others_speed=n["others_speed"].astype(f32),
+        braking=n["braking"],
+        t=t,
+        crashed=n["crashed"],
+        done=n["crashed"] | (t >= params.horizon),
+    )
+
+
 def reward(obs: jax.Array, action, next_obs: jax.Array, params: DrivingParams) -> jax.Array:
     """r_A of a step given as observations (:mod:`~mindgap.envs.driving.reward`); it depends on ``next_obs`` only."""
     del obs, action
