@@ -83,7 +83,7 @@ def test_driving_fast_table5_behaviours_figures_and_resume(stand_ins, tmp_path, 
     argv = ["reproduce", "driving", "--fast", "--quiet", "--out", str(out)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
-    assert stand_ins == ["driving/sac", "driving/drlhp", "driving/eps"]
+    assert stand_ins == ["driving/sac", "driving/drlhp", "driving/eps", "driving/drlhp-coin"]
     assert "| avg. rating (dissertation) | 7.6 | 5.0 | 5.9 |" in printed
     check_report(out, tmp_path / "report", "driving")
     with (out / "results.csv").open() as f:
@@ -116,12 +116,16 @@ def test_driving_fast_table5_behaviours_figures_and_resume(stand_ins, tmp_path, 
     assert {c["text"]: c["held"] for c in summary["claims"]}[
         "driving: EPS brakes first, then changes lane (in most episodes)"
     ]
+    # the control: DRLHP on coin-flip answers (the stand-in brakes whatever it is told, so the claim fails)
+    control = next(c for c in summary["claims"] if c["text"].startswith("driving: DRLHP follows the answers"))
+    assert control["held"] is False and "coin flips 1 of 1" in control["measured"]
+    assert by["drlhp-coin"]["seeds_braking_first"] == "1" and "DRLHP, coin flips" in (out / "table.md").read_text()
     for name in ("frames_eps.png", "episode_sac.gif", "participants.csv", "table.md", "curves.csv"):
         assert (out / name).stat().st_size > 0, name
 
     stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
     assert main(argv) == 0  # a rerun reads everything back
-    assert len(stand_ins) == 3 and capsys.readouterr().out == printed
+    assert len(stand_ins) == 4 and capsys.readouterr().out == printed
     assert {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")} == stamps
 
 
@@ -165,7 +169,9 @@ def test_presets_and_the_rerun_command():
     for way in ("expectation", "decisions"):
         other = dataclasses.replace(full, answers_by=way)
         assert registry.preset_of("driving", other) == "full" and not other.rollout
-        assert registry.command("driving", other, "runs/d") == f"mindgap reproduce driving --answers-by {way} --out runs/d"
+        assert (
+            registry.command("driving", other, "runs/d") == f"mindgap reproduce driving --answers-by {way} --out runs/d"
+        )
     # a run folder from before the field: it answered by its states, log T_H left out when use_belief was off
     old = json.loads(json.dumps(to_jsonable(full)))
     del old["answers_by"]
@@ -181,8 +187,10 @@ def test_answers_by_decisions_reaches_the_participants(tmp_path, monkeypatch):
     assert seen[0].answers_by == "decisions" and seen[0].answer_cfg.use_belief is False
     assert seen[0].answer_cfg.beta == 1.0 and not seen[0].rollout
     # and DRLHP and EPS hand it to the crowd: the engine has a person answer by the learner's teacher config
-    learners = [job.cfg for job in driving.jobs(seen[0]) if job.method in ("drlhp", "eps")]
-    assert len(learners) == 2 and all(c.teacher == seen[0].answer_cfg for c in learners)
+    learners = {job.key: job.cfg for job in driving.jobs(seen[0]) if job.method in ("drlhp", "eps")}
+    assert sorted(learners) == ["driving/drlhp", "driving/drlhp-coin", "driving/eps"]
+    assert learners["driving/drlhp"].teacher == learners["driving/eps"].teacher == seen[0].answer_cfg
+    assert learners["driving/drlhp-coin"].teacher == dataclasses.replace(seen[0].answer_cfg, beta=0.0)  # a fair coin
     assert main(["reproduce", "eps", "--fast", "--answers-by", "decisions"]) == 2
     with pytest.raises(SystemExit):  # argparse's one line
         main(["reproduce", "driving", "--fast", "--answers-by", "states"])
@@ -291,3 +299,50 @@ def test_the_participant_gates_read_what_the_participants_want_and_expect(stand_
     assert states["gates"]["braking_most_expected_on_sleet"]["value"] < brakers or brakers == 0
     assert main(["design", "driving", "--run", str(tmp_path / "none")]) == 2
     assert "no finished participants job" in capsys.readouterr().err
+
+
+def test_a_learner_control_changes_one_thing_and_resumes(stand_ins, tmp_path, capsys, monkeypatch):
+    """``mindgap design driving --run DIR --learner M ...``: the learner trains on the run's participants with
+    the answers by coin (β = 0), by one participant, or an exact per-step score; its record is kept."""
+    from mindgap.algorithms import eps as eps_alg
+    from mindgap.experiments import driving_controls as dc
+
+    out = tmp_path / "run"
+    assert main(["reproduce", "driving", "--fast", "--quiet", "--out", str(out), "--job", "driving/people"]) == 0
+    seen = []
+
+    def fake(world, cfg, person, seeds=1, out=None, progress=True, fresh=False, person_name="biased"):
+        seen.append((cfg, person, person_name))
+        actors = jax.tree.map(lambda *x: jnp.stack(x), *[_rule_actor("brake", cfg.sac.hidden)] * seeds)
+        loop = SimpleNamespace(sac=SimpleNamespace(params=SimpleNamespace(actor=actors)))
+        return {"curve": [(0, 1500, 1.0, 0)], "final_returns": np.ones((seeds, 4)), "carry": SimpleNamespace(loop=loop)}
+
+    monkeypatch.setattr(eps_alg, "train", fake)
+    pids = [r["pid"] for r in json.loads((out / "jobs" / "driving__people.json").read_text())["participants"]
+            if not r["dropped"]]  # fmt: skip
+    assert (
+        main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--coin", "--survival-entropy", "neutral"])
+        == 0
+    )
+    cfg, crowd, _ = seen[-1]
+    assert cfg.teacher.beta == 0.0 and cfg.sac.survival_entropy == "neutral" and crowd.size == len(pids)
+    assert "seeds braking first (in most episodes): 1 of 1" in capsys.readouterr().out
+    assert (
+        main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--coin", "--survival-entropy", "neutral"])
+        == 0
+    )
+    assert len(seen) == 1  # read back
+    assert main(["design", "driving", "--run", str(out), "--learner", "eps", "--only", pids[0], "--lam", "0"]) == 0
+    cfg, crowd, name = seen[-1]
+    assert crowd.size == 1 and name == pids[0] and cfg.lam == 0.0 and cfg.teacher.beta == 1.0
+    assert main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--exact", pids[0], "--road", "0"]) == 0
+    cfg, person, _ = seen[-1]
+    assert cfg.surrogate == "exact" and person.cfg.use_belief is False  # rollout answers: log π_H per step
+    assert (out / "controls" / dc.Control("drlhp", exact=pids[0], road=0.0).name / "record.json").is_file()
+    capsys.readouterr()
+    assert main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--only", "nobody"]) == 2
+    assert not (out / "controls" / dc.Control("drlhp", only="nobody").name).exists()  # nothing half-written
+    assert main(["design", "driving", "--run", str(out), "--coin"]) == 2
+    assert main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--exact", pids[0], "--coin"]) == 2
+    err = capsys.readouterr().err
+    assert "no valid participant 'nobody'" in err and "--coin goes with --learner" in err and "does not combine" in err

@@ -98,7 +98,9 @@ def test_sanity_bias_question_and_ratings(key):
     alive = jnp.concatenate([steer.mask, brake.mask])
     r = dv.rate_rollouts(key, _actor(SLOWER), True, obs, act, alive, noise=0.0)
     assert r[1] > r[0] and set(r) <= set(range(1, 11))
-    played = dv.rate_rollouts(key, _actor(SLOWER), True, obs, act, alive, noise=0.0, belief=WORLD.params.with_sleet(0.0))
+    played = dv.rate_rollouts(
+        key, _actor(SLOWER), True, obs, act, alive, noise=0.0, belief=WORLD.params.with_sleet(0.0)
+    )
     assert np.array_equal(played, r)  # a π_H that ignores the state rates the played-out decisions alike
     assert dv.rating_fails(np.array([5.0, 1.0, 7.0]), sanity=1) == ""
     assert "sanity" in dv.rating_fails(np.array([5.0, 6.0, 7.0]), sanity=1)

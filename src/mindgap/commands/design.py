@@ -23,12 +23,17 @@ Fits PrefBias's inference alone to simulated answers and reports, by terrain, th
 against the person's on held-out true transitions (:mod:`~mindgap.experiments.belief_recovery`).
 
 mindgap design driving --run DIR [--episodes N] [--answers-by rollout|expectation|decisions] [--seed S]
+mindgap design driving --run DIR --learner drlhp|eps [--coin] [--only PID] [--exact PID] [--road S] [--lam L]
+                       [--survival-entropy paid|neutral] [--seeds N]
 
 The driving study's participant gates on a run's participants, before any learner
 (:mod:`~mindgap.experiments.driving_probes`): which scripted response each participant wants and
 finds most expected, how their π_H meets the front car's braking, the bias and sanity counts and
 where the sanity collision ranks. Writes ``DIR/gates.json`` (``gates-WAY.json`` with
-``--answers-by``); the exit status is 0 when every gate holds, 1 when one fails.
+``--answers-by``); the exit status is 0 when every gate holds, 1 when one fails. With ``--learner``,
+a control instead: that learner trained on the run's participants with one thing changed
+(:mod:`~mindgap.experiments.driving_controls`), in ``DIR/controls/NAME`` (resumable), its
+behaviours printed per seed.
 """
 
 from __future__ import annotations
@@ -65,7 +70,8 @@ def add_parser(sub) -> None:
     )  # fmt: skip
     c.add_argument("--out", type=Path, help="folder for WORLD.txt and WORLD.json")
     r = dsub.add_parser(
-        "recovery", help="does PrefBias's inference recover the belief from the answers? (docs/experiments/identifiability.md)"
+        "recovery",
+        help="does PrefBias's inference recover the belief from the answers? (docs/experiments/identifiability.md)",
     )
     r.add_argument("worlds", nargs="+", help="named terrain worlds or world files")
     r.add_argument("--belief", help="the person's belief (default: each world's first)")
@@ -90,6 +96,17 @@ def add_parser(sub) -> None:
         help="how the participants judge a clip (default: as the run has them)",
     )  # fmt: skip
     v.add_argument("--seed", type=int, default=0, help="random seed of the episodes")
+    v.add_argument(
+        "--learner", choices=("drlhp", "eps"),
+        help="instead of the gates, train this learner on the run's participants as a control (below)",
+    )  # fmt: skip
+    v.add_argument("--coin", action="store_true", help="control: every answer a fair coin")
+    v.add_argument("--only", metavar="PID", help="control: every query goes to this one participant")
+    v.add_argument("--exact", metavar="PID", help="control: u_H is this participant's own per-step score (no queries)")
+    v.add_argument("--road", type=float, help="control: the sleet of the road driven on (default the run's)")
+    v.add_argument("--lam", type=float, help="control: EPS's λ (default the preset's)")
+    v.add_argument("--survival-entropy", choices=("paid", "neutral"), help="control: SAC's survival_entropy")
+    v.add_argument("--seeds", type=int, help="control: seeds (default the preset's)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -144,6 +161,20 @@ def _driving(args) -> int:
 
     if args.episodes < 1:
         raise ValueError("--episodes must be at least 1")
+    control_flags = ("coin", "only", "exact", "road", "lam", "survival_entropy", "seeds")
+    if args.learner is not None:
+        from ..experiments import driving_controls as dc
+
+        if args.answers_by is not None:
+            raise ValueError("--answers-by belongs to the gates; a control's participants answer as the run's")
+        if args.seeds is not None and args.seeds < 1:
+            raise ValueError("--seeds must be at least 1")
+        c = dc.Control(args.learner, **{k: getattr(args, k) for k in control_flags})
+        print(dc.report(dc.run_control(args.run, c)))
+        return 0
+    for flag in control_flags:
+        if getattr(args, flag) not in (None, False):
+            raise ValueError(f"--{flag.replace('_', '-')} goes with --learner")
     people = probes.load_participants(args.run, args.answers_by)
     g = probes.gates(people, args.episodes, args.seed)
     print(probes.report(g))
@@ -204,7 +235,9 @@ def _recovery(args) -> int:
         raise ValueError(f"--set: {e}") from None
     pcfg.check()
     for world in _terrain_worlds(args.worlds, args.belief):
-        rec = belief_recovery(world, pcfg, cfg, args.belief, progress=lambda m, w=world.name: print(f"{w}: {m} …", flush=True))
+        rec = belief_recovery(
+            world, pcfg, cfg, args.belief, progress=lambda m, w=world.name: print(f"{w}: {m} …", flush=True)
+        )
         text = report(rec)
         print(text)
         if args.out is not None:

@@ -54,7 +54,7 @@ from ..teachers import drivers as dv
 from ..teachers.preference import TeacherConfig
 from . import prefbias_common as pc
 from ._runfolder import RunFolder, to_jsonable, write_csv
-from .driving_report import METHODS, WORLD
+from .driving_report import COIN, METHODS, WORLD
 from .driving_report import write_outputs as report_outputs
 
 
@@ -116,7 +116,6 @@ class DrivingConfig:
         if self.shown > self.rollouts:
             raise ValueError("shown must not exceed rollouts")
 
-
     @property
     def answer_cfg(self) -> TeacherConfig:
         """How the participants answer, as the learners' ``teacher`` config: ``decisions`` leaves log T_H out."""
@@ -171,6 +170,8 @@ def jobs(cfg: DrivingConfig) -> list[pc.Job]:
     for method, label, tags in (("drlhp", "DRLHP", {}), ("eps", "EPS", {"lam": cfg.eps.lam})):
         learner = dataclasses.replace(cfg.eps, method=method, teacher=cfg.answer_cfg)
         out.append(pc.Job(f"{WORLD}/{method}", WORLD, method, label, learner, tags))
+    drlhp = dataclasses.replace(cfg.eps, method="drlhp", teacher=cfg.answer_cfg)
+    out.append(pc.Job(COIN, WORLD, "drlhp", "DRLHP (coin-flip answers)", pc.coin_flips(drlhp), {"person": "coin"}))
     out.append(pc.Job(f"{WORLD}/testing", WORLD, "testing", "testing phase", cfg.raters, {}))
     return out
 
@@ -180,7 +181,8 @@ def job_needs(cfg: DrivingConfig) -> dict[str, tuple[str, ...]]:
     read the participants; the testing phase also reads every learner's policy."""
     people = f"{WORLD}/people"
     learners = tuple(j.key for j in jobs(cfg) if j.method in METHODS)
-    return {**{k: (people,) for k in learners}, f"{WORLD}/testing": (people, *learners)}
+    rated = tuple(f"{WORLD}/{m}" for m in METHODS)
+    return {**{k: (people,) for k in learners}, f"{WORLD}/testing": (people, *rated)}
 
 
 def _sac_cfg(cfg: DrivingConfig) -> pbrl.PbRLConfig:

@@ -81,7 +81,9 @@ def scripted_action(policy: int, obs: jax.Array, t: jax.Array, seen: jax.Array, 
 
 def scripted_segments(world, params, policy: int, episodes: int, key) -> tuple[Segments, np.ndarray]:
     """``episodes`` whole episodes of scripted ``policy`` in the world ``params``: (Segments [E, T, ·], r_A returns [E])."""
-    obs, a, nxt, live, r = _scripted(jax.random.split(key, episodes), jnp.int32(policy), params, world.env, world.horizon)
+    obs, a, nxt, live, r = _scripted(
+        jax.random.split(key, episodes), jnp.int32(policy), params, world.env, world.horizon
+    )
     return Segments(obs, a[..., None].astype(jnp.float32), nxt, live.astype(jnp.float32)), np.asarray(r.sum(-1))
 
 
@@ -97,7 +99,13 @@ def _scripted(keys, policy, params, env, horizon: int):
             out = env.step(kt, state, a, params)
             nxt = env.observe(out.state, params)
             r = jnp.where(done, 0.0, env.reward(obs, a, nxt, params))
-            return (out.state, done | out.terminated | out.truncated, t + 1, seen + (obs[7] > 0.5)), (obs, a, nxt, ~done, r)
+            return (out.state, done | out.terminated | out.truncated, t + 1, seen + (obs[7] > 0.5)), (
+                obs,
+                a,
+                nxt,
+                ~done,
+                r,
+            )
 
         init = (env.reset(k0, params), jnp.zeros((), bool), 0, 0)
         return jax.lax.scan(body, init, jax.random.split(k1, horizon))[1]
@@ -130,9 +138,12 @@ def load_participants(run: Path, answers_by: str | None = None) -> Participants:
     run = Path(run)
     people_path = run / "jobs" / "driving__people.json"
     if not people_path.is_file() or not (run / "config.json").is_file():
-        raise ValueError(f"{run} has no finished participants job (run `mindgap reproduce driving --job driving/people`)")
+        raise ValueError(
+            f"{run} has no finished participants job (run `mindgap reproduce driving --job driving/people`)"
+        )
     stored = json.loads((run / "config.json").read_text())
-    base = dr.preset("full")
+    fast = dr.preset("fast")
+    base = fast if stored["eps"]["total_steps"] == fast.eps.total_steps else dr.preset("full")  # the run's schedule
     person = dataclasses.replace(base.person, sac=SACConfig(hidden=tuple(stored["person"]["sac"]["hidden"])))
     way = answers_by or stored.get("answers_by") or ("expectation" if stored["teacher"]["use_belief"] else "decisions")
     cfg = dataclasses.replace(
@@ -149,7 +160,9 @@ def reward_table(p: Participants, episodes: int, key) -> dict[str, np.ndarray]:
     """Per road (``dry``, ``sleet``): each participant's mean r_H of each scripted policy's episodes, [P, 5]."""
     out = {}
     weights = jnp.asarray(np.stack([d.weights for d in p.drivers]))
-    everyone = jax.jit(jax.vmap(lambda seg, w, params: dv.reward_sums(seg, dv.RewardH(w, params)).mean(), (None, 0, None)))
+    everyone = jax.jit(
+        jax.vmap(lambda seg, w, params: dv.reward_sums(seg, dv.RewardH(w, params)).mean(), (None, 0, None))
+    )
     for road, params in (("dry", p.world.beliefs["dry"]), ("sleet", p.world.params)):
         table = np.zeros((len(p.drivers), len(POLICIES)))
         for j in range(len(POLICIES)):
@@ -181,7 +194,9 @@ def onset_response(p: Participants, episodes: int, key) -> np.ndarray:
     many = jax.jit(jax.vmap(episode, in_axes=(None, None, 0)))
     rows = []
     for i, d in enumerate(p.drivers):
-        obs, act, live = map(np.asarray, many(p.actor(i), dr.belief_params(p.world, d), jax.random.split(key, episodes)))
+        obs, act, live = map(
+            np.asarray, many(p.actor(i), dr.belief_params(p.world, d), jax.random.split(key, episodes))
+        )
         braking = (obs[..., 7] > 0.5) & live
         seen = braking.any(1)
         first = act[np.arange(episodes), np.argmax(braking, 1)].astype(int)[seen]
@@ -274,5 +289,7 @@ def report(g: dict) -> str:
         lines.append(f"{name:<12} {row[0]:>8.2f} {row[1]:>12.2f} {row[2]:>12.2f} {s:>28.2f}")
     lines += ["", "gates"]
     for k, v in g["gates"].items():
-        lines.append(f"  {k:<32} {v['value']:>3} of {v['of']:<3} target {v['target']:<18} {'holds' if v['holds'] else 'FAILS'}")
+        lines.append(
+            f"  {k:<32} {v['value']:>3} of {v['of']:<3} target {v['target']:<18} {'holds' if v['holds'] else 'FAILS'}"
+        )
     return "\n".join(lines)

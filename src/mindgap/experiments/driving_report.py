@@ -19,10 +19,13 @@ from . import prefbias_common as pc
 from ._runfolder import to_jsonable, write_csv
 
 METHODS = ("eps", "sac", "drlhp")
-LABELS = {"eps": "EPS", "sac": "SAC", "drlhp": "DRLHP"}
+LABELS = {"eps": "EPS", "sac": "SAC", "drlhp": "DRLHP", "drlhp-coin": "DRLHP, coin flips"}
 PAPER = {"eps": (7.6, 11.0), "sac": (5.0, 11.9), "drlhp": (5.9, 9.6)}
 """Table 5: (average rating, average return) of each method in the study."""
 WORLD = "driving"
+COIN = f"{WORLD}/drlhp-coin"
+"""The control job: DRLHP on answers that are fair coins (Bradley–Terry at β = 0), everything else as DRLHP's."""
+CONTROL = "drlhp-coin"
 
 BEHAVIOURS = ("collided", "changed", "first_change", "braked_first", "min_gap")
 
@@ -44,7 +47,7 @@ def write_outputs(cfg, out: Path, records: dict, *, world_of, load_actors) -> di
     testing = records.get(f"{WORLD}/testing")
     rows, curves = [], []
     valid_ratings = [r for r in (testing or {}).get("ratings", []) if r["valid"]]
-    for m in METHODS:
+    for m in (*METHODS, CONTROL):
         rec = records.get(f"{WORLD}/{m}")
         if rec is None:
             continue
@@ -52,11 +55,12 @@ def write_outputs(cfg, out: Path, records: dict, *, world_of, load_actors) -> di
         row["return_mean"], row["return_std"] = _ms(rec["return"])
         for b in BEHAVIOURS:
             row[f"{b}_mean"], row[f"{b}_std"] = _ms(rec[b])
+        row["seeds_braking_first"] = int(np.sum(np.asarray([x or 0.0 for x in rec["braked_first"]]) > 0.5))
         mine = [r["rating"] for r in valid_ratings if r["method"] == m]
         row["rating_mean"], row["rating_std"] = (
             (float(np.mean(mine)), float(np.std(mine))) if mine else (np.nan, np.nan)
         )
-        row["paper_rating"], row["paper_return"] = PAPER[m]
+        row["paper_rating"], row["paper_return"] = PAPER.get(m, (np.nan, np.nan))
         rows.append(row)
         curves += pc.curve_rows(rec)
     by = {r["method"]: r for r in rows}
@@ -99,18 +103,10 @@ def _table(cfg, by: dict, people: dict | None, testing: dict | None) -> str:
         f"return under r_A of {cfg.rollouts} greedy episodes per seed (mean ± std over {cfg.seeds} seed(s)), "
         f"sleet {cfg.sleet:g}; EPS λ = {cfg.eps.lam:g}.\n\n" + pc.markdown(head, t5)
     )
-    beh = [
-        ["collision rate", *(pc.share(by[m]["collided_mean"]) for m in cols)],
-        ["episodes with a lane change", *(pc.share(by[m]["changed_mean"]) for m in cols)],
-        [
-            "first lane change (decisions after the front car brakes)",
-            *(pc.fmt(by[m]["first_change_mean"]) for m in cols),
-        ],
-        ["braked before changing lane", *(pc.share(by[m]["braked_first_mean"]) for m in cols)],
-        ["smallest gap to the front car, in line with it [m]", *(pc.fmt(by[m]["min_gap_mean"]) for m in cols)],
-    ]
+    shown = [*cols, *([CONTROL] if CONTROL in by else [])]  # the control beside the methods
+    beh = [[name, *(_behaviour_cell(by[m], i) for m in shown)] for i, name in enumerate(BEHAVIOUR_ROWS)]
     md += "\ndriving behaviours (Figs. 34–36), mean over seeds of each seed's greedy episodes:\n\n" + pc.markdown(
-        head, beh
+        ["", *(LABELS[m] for m in shown)], beh
     )
     if people is not None:
         md += (
@@ -123,8 +119,41 @@ def _table(cfg, by: dict, people: dict | None, testing: dict | None) -> str:
     return md
 
 
+BEHAVIOUR_ROWS = (
+    "collision rate",
+    "episodes with a lane change",
+    "first lane change (decisions after the front car brakes)",
+    "braked before changing lane",
+    "smallest gap to the front car, in line with it [m]",
+    "seeds braking first (in most of their episodes)",
+)
+
+
+def _behaviour_cell(row: dict, i: int) -> str:
+    """Row ``i`` of :data:`BEHAVIOUR_ROWS` for one method's results row."""
+    return [
+        lambda: pc.share(row["collided_mean"]),
+        lambda: pc.share(row["changed_mean"]),
+        lambda: pc.fmt(row["first_change_mean"]),
+        lambda: pc.share(row["braked_first_mean"]),
+        lambda: pc.fmt(row["min_gap_mean"]),
+        lambda: f"{row['seeds_braking_first']} of {row['seeds']}",
+    ][i]()
+
+
 def _claims(by: dict) -> list[dict]:
     out = []
+    if "drlhp" in by and CONTROL in by:
+        a, c = by["drlhp"], by[CONTROL]
+        out.append(
+            pc.claim(
+                "driving: DRLHP follows the answers: it brakes first in most seeds on the participants' answers "
+                "(≥ 4 of 5) and in few on coin flips (≤ 1 of 5)",
+                a["seeds_braking_first"] >= 0.8 * a["seeds"] and c["seeds_braking_first"] <= 0.2 * c["seeds"],
+                f"answers {a['seeds_braking_first']} of {a['seeds']} seeds, coin flips "
+                f"{c['seeds_braking_first']} of {c['seeds']}",
+            )
+        )
     if all(m in by for m in METHODS):
         r = {m: by[m]["rating_mean"] for m in METHODS}
         g = {m: by[m]["return_mean"] for m in METHODS}

@@ -215,7 +215,11 @@ def participant_reward(p: RewardH, obs: jax.Array, act: jax.Array, next_obs: jax
 # answering queries
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["beliefs", "policies", "attentive"], meta_fields=["env", "cfg", "rollout"])
+@partial(
+    jax.tree_util.register_dataclass,
+    data_fields=["beliefs", "policies", "attentive"],
+    meta_fields=["env", "cfg", "rollout"],
+)
 @dataclasses.dataclass(frozen=True)
 class CrowdTeacher:
     """The valid participants of the training phase as one jittable teacher.
@@ -324,7 +328,15 @@ def expectedness(policy: Params, obs: jax.Array, act: jax.Array, alive: jax.Arra
 
 
 def rate_rollouts(
-    key, policy: Params, attentive: bool, obs, act, alive, noise: float, belief=None, cfg: TeacherConfig = TeacherConfig()
+    key,
+    policy: Params,
+    attentive: bool,
+    obs,
+    act,
+    alive,
+    noise: float,
+    belief=None,
+    cfg: TeacherConfig = TeacherConfig(),
 ) -> np.ndarray:
     """One rater's 1–10 ratings of rollouts ``obs [R, T+1, d]``, ``act [R, T, 1]``, ``alive [R, T]`` (module docstring).
 
