@@ -4,7 +4,7 @@ mindgap reproduce table1 [--fast] [--seeds N] [--out DIR] [--fresh]
 mindgap gerel --domain grid7 [--size N] [--belief B] [--seed S] [--out DIR]
 mindgap gerel --domain grid7 --ratings FILE [--out DIR]
 mindgap reproduce coffee [--fast] [--participants N] [--out DIR]
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity expectation] [--importance A,B,C,D] [--answers-by rollout|expectation|decisions] [--out DIR]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity expectation] [--importance A,B,C,D] [--answers-by rollout-behaviour|rollout|expectation|decisions] [--out DIR]
 mindgap reproduce nav|priors|sampling|eps|lambda|gym [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR]
 mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
@@ -60,9 +60,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--importance", metavar="A,B,C,D", help="driving: the participants' mean importance answers (1-5)")
     r.add_argument(
         "--answers-by",
-        choices=("rollout", "expectation", "decisions"),
+        choices=("rollout", "rollout-behaviour", "expectation", "decisions"),
         help="driving: participants judge a clip by its decisions played out in the world they believe in "
-        "(rollout, default), by log T_H + log pi_H at its states (expectation) or by log pi_H there alone",
+        "(rollout-behaviour, default; rollout also charges a crash they did not expect), by log T_H + log pi_H "
+        "at its states (expectation) or by log pi_H there alone (decisions)",
     )
     r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
     r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")

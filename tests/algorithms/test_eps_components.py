@@ -218,6 +218,8 @@ def test_policy_entropy_weight_is_sacs_alpha():
     assert eps_sac_config(SACConfig(), 2.5, 1.0).alpha == 2.5
     assert eps_sac_config(SACConfig(reward_scale=0.1), 2.5, 5.0).alpha == pytest.approx(0.05)
     assert eps_sac_config(SACConfig(), 0.0, 7.0).alpha == 0.0  # λ = 0: no entropy bonus at all
+    # H_π's per-step constant is the λ-term's own (h_shift): never charged again by SAC
+    assert eps_sac_config(SACConfig(survival_entropy="neutral"), 2.0, 7.0).survival_entropy == "paid"
     with pytest.raises(ValueError, match="non-negative"):
         eps_sac_config(SACConfig(), -1.0, 7.0)
     with pytest.raises(ValueError, match="positive"):

@@ -165,7 +165,14 @@ def test_presets_and_the_rerun_command():
     drawn = highway_version(busy, importance_weights(STUDY_IMPORTANCE))  # the figures' road: the same cars
     assert drawn.observation_space.shape == (driving.world_of(busy).env.observation_space.dim,)
     drawn.close()
-    assert full.answers_by == "rollout" and full.rollout
+    assert full.answers_by == "rollout-behaviour" and full.rollout and not full.crash
+    drlhp = dataclasses.replace(full.eps, method="drlhp")
+    assert full.eps.sac.survival_entropy == "neutral" and drlhp.agent_sac().survival_entropy == "neutral"
+    assert dataclasses.replace(full.eps, method="eps").agent_sac().survival_entropy == "paid"  # Eq. 4.6's own H_π
+    assert driving._sac_cfg(full).sac.survival_entropy == "neutral"
+    crash = dataclasses.replace(full, answers_by="rollout")
+    assert crash.rollout and crash.crash
+    assert registry.command("driving", crash, "runs/d") == "mindgap reproduce driving --answers-by rollout --out runs/d"
     for way in ("expectation", "decisions"):
         other = dataclasses.replace(full, answers_by=way)
         assert registry.preset_of("driving", other) == "full" and not other.rollout
@@ -291,7 +298,7 @@ def test_the_participant_gates_read_what_the_participants_want_and_expect(stand_
     g = json.loads((out / "gates.json").read_text())
     rows = json.loads((out / "jobs" / "driving__people.json").read_text())["participants"]
     brakers = sum(1 for r in rows if not r["dropped"] and r["believed_sleet"] == 0.0)
-    assert g["answers_by"] == "rollout" and g["gates"]["slows_at_onset"]["value"] == brakers
+    assert g["answers_by"] == "rollout-behaviour" and g["gates"]["slows_at_onset"]["value"] == brakers
     assert g["gates"]["braking_most_expected_on_sleet"]["value"] == brakers
     assert "slows_at_onset" in printed and status == (0 if all(v["holds"] for v in g["gates"].values()) else 1)
     assert main(["design", "driving", "--run", str(out), "--episodes", "8", "--answers-by", "expectation"]) in (0, 1)

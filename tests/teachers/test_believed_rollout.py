@@ -70,6 +70,8 @@ def test_a_dry_road_believer_sees_braking_on_sleet_work_and_is_surprised_by_its_
     scores = np.asarray(br.believed_scores(seg, uniform, DRY, TeacherConfig()))
     steps = np.asarray(seg.mask.sum(-1))
     assert np.allclose(scores, -np.log(5.0) * steps + FLOOR * crashed, rtol=1e-5)
+    decisions = np.asarray(br.believed_scores(seg, uniform, DRY, TeacherConfig(), crash=False))
+    assert np.allclose(decisions, -np.log(5.0) * steps, rtol=1e-5)  # the decisions alone: no crash term
     per_step = np.asarray(br.believed_per_step(seg, uniform, DRY, TeacherConfig()))
     assert np.allclose(per_step, scores / steps, rtol=1e-6)
 

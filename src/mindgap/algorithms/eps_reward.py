@@ -200,13 +200,15 @@ def eps_sac_config(base: SACConfig, lam: float, nats_per_unit: float) -> SACConf
     """``base`` with a fixed entropy coefficient α = λ · reward_scale / s_H (``s_H`` = ``nats_per_unit``).
 
     SAC's H_π becomes Eq. 4.6's policy-entropy term on the scale of the standardised u_H
-    (module docstring, "Scale of H_π").
+    (module docstring, "Scale of H_π"). Its per-step constant is the λ-term's (``h_shift``, the cost
+    form), so SAC's ``survival_entropy`` stays ``paid``: ``neutral`` would charge α·H̄ a second time.
     """
     if lam < 0:
         raise ValueError(f"λ must be non-negative, got {lam}")
     if not nats_per_unit > 0:
         raise ValueError(f"nats_per_unit must be positive, got {nats_per_unit}")
-    return dataclasses.replace(base, alpha=float(lam) * base.reward_scale / float(nats_per_unit))
+    alpha = float(lam) * base.reward_scale / float(nats_per_unit)
+    return dataclasses.replace(base, alpha=alpha, survival_entropy="paid")
 
 
 def _filled_stats(values: jax.Array, buf: Replay) -> tuple[jax.Array, jax.Array]:

@@ -22,7 +22,7 @@ mindgap design recovery NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--u
 Fits PrefBias's inference alone to simulated answers and reports, by terrain, the learned belief
 against the person's on held-out true transitions (:mod:`~mindgap.experiments.belief_recovery`).
 
-mindgap design driving --run DIR [--episodes N] [--answers-by rollout|expectation|decisions] [--seed S]
+mindgap design driving --run DIR [--episodes N] [--answers-by rollout|rollout-behaviour|expectation|decisions] [--seed S]
 mindgap design driving --run DIR --learner drlhp|eps [--coin] [--only PID] [--exact PID] [--road S] [--lam L]
                        [--survival-entropy paid|neutral] [--seeds N]
 
@@ -92,7 +92,7 @@ def add_parser(sub) -> None:
     v.add_argument("--run", type=Path, required=True, help="a driving run folder with a finished driving/people job")
     v.add_argument("--episodes", type=int, default=200, help="episodes per scripted policy and road (default 200)")
     v.add_argument(
-        "--answers-by", choices=("rollout", "expectation", "decisions"),
+        "--answers-by", choices=("rollout", "rollout-behaviour", "expectation", "decisions"),
         help="how the participants judge a clip (default: as the run has them)",
     )  # fmt: skip
     v.add_argument("--seed", type=int, default=0, help="random seed of the episodes")
@@ -161,18 +161,16 @@ def _driving(args) -> int:
 
     if args.episodes < 1:
         raise ValueError("--episodes must be at least 1")
-    control_flags = ("coin", "only", "exact", "road", "lam", "survival_entropy", "seeds")
+    control_flags = ("coin", "only", "exact", "road", "lam", "survival_entropy", "seeds", "answers_by")
     if args.learner is not None:
         from ..experiments import driving_controls as dc
 
-        if args.answers_by is not None:
-            raise ValueError("--answers-by belongs to the gates; a control's participants answer as the run's")
         if args.seeds is not None and args.seeds < 1:
             raise ValueError("--seeds must be at least 1")
         c = dc.Control(args.learner, **{k: getattr(args, k) for k in control_flags})
         print(dc.report(dc.run_control(args.run, c)))
         return 0
-    for flag in control_flags:
+    for flag in control_flags[:-1]:
         if getattr(args, flag) not in (None, False):
             raise ValueError(f"--{flag.replace('_', '-')} goes with --learner")
     people = probes.load_participants(args.run, args.answers_by)

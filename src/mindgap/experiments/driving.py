@@ -74,10 +74,13 @@ class DrivingConfig:
     attentive recruits who expect steering, docs/experiments/driving.md)."""
     importance: tuple[float, ...] = STUDY_IMPORTANCE
     """The population's mean importance answers (Fig. 32's averages)."""
-    answers_by: str = "rollout"
+    answers_by: str = "rollout-behaviour"
     """How a participant judges which clip is more expected (queries, the sanity item asked as an
-    expectation, the testing phase's ratings): ``rollout`` (the clip's decisions played out in the world
-    they believe in, :mod:`~mindgap.teachers.believed_rollout`; docs/domains/driving.md), ``expectation``
+    expectation, the testing phase's ratings): ``rollout-behaviour`` (the default: the clip's decisions
+    played out in the world they believe in, :mod:`~mindgap.teachers.believed_rollout`;
+    docs/domains/driving.md), ``rollout`` (the same, and a crash their rollout does not reproduce
+    charged at the floor: braking in lane on sleet then is nobody's expectation, because it crashes
+    there; docs/experiments/driving.md), ``expectation``
     (Σ [log T_H + log π_H] at the clip's own states, the identifiable protocol) or ``decisions``
     (log π_H at the clip's own states alone)."""
     seeds: int = 5
@@ -124,21 +127,32 @@ class DrivingConfig:
     @property
     def rollout(self) -> bool:
         """Whether the participants play a clip's decisions out in their believed world."""
+        return self.answers_by in ("rollout", "rollout-behaviour")
+
+    @property
+    def crash(self) -> bool:
+        """Whether a played-out clip's crash that the participant's rollout does not reproduce is charged."""
         return self.answers_by == "rollout"
 
 
-ANSWERS_BY = ("rollout", "expectation", "decisions")
+ANSWERS_BY = ("rollout", "rollout-behaviour", "expectation", "decisions")
 """The ways a participant judges a clip (:attr:`DrivingConfig.answers_by`)."""
 
 
 def _eps(preset: str) -> EPSConfig:
     """EPS on the driving world: the preset's schedule with queries of 10 decisions from episodes' starts,
-    the response to the front car's braking as the study's hand-picked clips showed it (§4.4.2, Fig. 33)."""
+    the response to the front car's braking as the study's hand-picked clips showed it (§4.4.2, Fig. 33),
+    and SAC's entropy neutral to survival (``survival_entropy="neutral"``: SAC and DRLHP; EPS's H_π is
+    Eq. 4.6's own term, :func:`~mindgap.algorithms.eps_reward.eps_sac_config`) — every episode here
+    ends, by a crash or at the horizon, and when it ends is what the study is about
+    (docs/experiments/driving.md, "The learners follow the answers")."""
     if preset == "full":
-        return eps_config(
+        cfg = eps_config(
             "full", total_steps=30_000, queries=400, per_round=40, segment=10, queries_from="start", lam=2.0
         )
-    return eps_config("fast", segment=10, queries_from="start", lam=2.0)
+    else:
+        cfg = eps_config("fast", segment=10, queries_from="start", lam=2.0)
+    return dataclasses.replace(cfg, sac=dataclasses.replace(cfg.sac, survival_entropy="neutral"))
 
 
 def preset(name: str) -> DrivingConfig:
@@ -258,8 +272,9 @@ def _actor_path(folder: RunFolder, key: str) -> Path:
 
 
 def recruit(key, cfg: DrivingConfig, world, n_valid: int, prefix: str, judge, max_rounds: int = 20):
-    """Recruit (as on MTurk) until ``n_valid`` recruits pass: each round draws ``n_valid`` recruits, trains
-    their π_H in one vmapped program and asks ``judge(key, drivers, actors) → [why dropped, "" if valid]``.
+    """Recruit (as on MTurk) until ``n_valid`` recruits pass: each round draws as many recruits as are still
+    missing (``n_valid`` in the first), trains their π_H in one vmapped program and asks
+    ``judge(key, drivers, actors) → [why dropped, "" if valid]``.
 
     Returns every recruit in order as (driver, why, actor), stopping at the ``n_valid``-th valid one.
     """
@@ -270,7 +285,7 @@ def recruit(key, cfg: DrivingConfig, world, n_valid: int, prefix: str, judge, ma
             dv.sample_driver(
                 jax.random.fold_in(k_draw, i), _population(cfg), f"{prefix}-{len(out) + i + 1:02d}", cfg.sleet
             )
-            for i in range(n_valid)
+            for i in range(n_valid - ok)
         ]
         actors = train_expected_policies(world, batch, cfg)
         whys = judge(k_judge, batch, actors)
@@ -423,13 +438,13 @@ def crowd_teacher(folder: RunFolder, cfg: DrivingConfig, world, people: dict) ->
     valid, actors = load_people(folder, world, people, cfg)
     beliefs = jax.tree.map(lambda *xs: jnp.stack(xs), *[belief_params(world, d) for d in valid])
     attentive = jnp.asarray([d.attentive for d in valid])
-    return dv.CrowdTeacher(beliefs, actors, attentive, world.env, cfg.answer_cfg, rollout=cfg.rollout)
+    return dv.CrowdTeacher(beliefs, actors, attentive, world.env, cfg.answer_cfg, rollout=cfg.rollout, crash=cfg.crash)
 
 
 def clip_per_step(cfg: DrivingConfig, seg: Segments, actor, belief, env) -> jax.Array:
     """How expected each clip looks per decision to one participant, as ``cfg.answers_by`` has them judge: [K]."""
     if cfg.rollout:
-        return dv.believed_per_step(seg, actor, belief, cfg.answer_cfg)
+        return dv.believed_per_step(seg, actor, belief, cfg.answer_cfg, cfg.crash)
     return dv.per_step_scores(seg, dv.ExpectationTeacher(belief, actor, env), cfg.answer_cfg)
 
 
@@ -547,7 +562,7 @@ def testing_record(folder: RunFolder, cfg: DrivingConfig, world, people: dict) -
             belief = belief_params(world, d) if cfg.rollout else None
             r = dv.rate_rollouts(
                 jax.random.fold_in(key, i), actor, d.attentive, obs, act, alive, cfg.population.rating_noise,
-                belief=belief, cfg=cfg.answer_cfg,
+                belief=belief, cfg=cfg.answer_cfg, crash=cfg.crash,
             )  # fmt: skip
             ratings[d.pid] = r
             whys.append(dv.rating_fails(r, sanity))

@@ -1,6 +1,6 @@
 """The driving study on the command line: ``mindgap reproduce driving``.
 
-mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity expectation] [--importance A,B,C,D] [--answers-by rollout|expectation|decisions] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
+mindgap reproduce driving [--fast] [--seeds N] [--sleet S] [--traffic N] [--sanity expectation] [--importance A,B,C,D] [--answers-by rollout-behaviour|rollout|expectation|decisions] [--out DIR] [--fresh] [--quiet] [--assemble] [--job KEY]
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, 4 + 4 participants, tiny networks: a dry
 run and the tests' preset, not results); without it the full one (5 seeds, 30 000 steps,
@@ -8,8 +8,8 @@ run and the tests' preset, not results); without it the full one (5 seeds, 30 00
 1); ``--importance`` the population's mean answers to Fig. 32's four questions (1–5; default
 the study's 3.42,4.57,3.28,3.78). ``--answers-by`` says how the participants judge which clip is
 more expected (queries, the sanity item asked as an expectation, the testing phase's ratings):
-``rollout`` (default) plays the clip's decisions out in the world they believe in;
-``expectation`` scores Σ [log T_H + log π_H] at the clip's own states and ``decisions`` log π_H
+``rollout-behaviour`` (default) plays the clip's decisions out in the world they believe in;
+``rollout`` also charges a crash their rollout does not reproduce; ``expectation`` scores Σ [log T_H + log π_H] at the clip's own states and ``decisions`` log π_H
 there alone (docs/experiments/driving.md). The run folder defaults to
 ``runs/driving`` (``runs/driving-fast``); rerunning resumes.
 """

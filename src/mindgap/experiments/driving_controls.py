@@ -14,6 +14,7 @@ own, with one thing changed, and measures the behaviours the experiment measures
   without learning noise (K2): log T_H + log π_H at the clip's states when the run's participants
   answer by ``expectation``, else log π_H there (a played-out clip's score is no sum over its own
   steps);
+* ``answers_by``: how the participants judge a clip (:attr:`~.driving.DrivingConfig.answers_by`);
 * ``road``: the sleet of the road the learner drives on; ``lam``: EPS's λ;
   ``survival_entropy``: :attr:`~mindgap.algorithms.sac.SACConfig.survival_entropy`.
 
@@ -49,6 +50,7 @@ class Control:
     lam: float | None = None
     survival_entropy: str | None = None
     seeds: int | None = None
+    answers_by: str | None = None
 
     def __post_init__(self):
         if self.method not in ("drlhp", "eps"):
@@ -62,7 +64,8 @@ class Control:
     def name(self) -> str:
         parts = [self.method]
         for field, value in (("coin", self.coin), ("only", self.only), ("exact", self.exact), ("road", self.road),
-                             ("lam", self.lam), ("survival", self.survival_entropy), ("seeds", self.seeds)):  # fmt: skip
+                             ("lam", self.lam), ("survival", self.survival_entropy), ("seeds", self.seeds),
+                             ("answers", self.answers_by)):  # fmt: skip
             if value not in (None, False):
                 parts.append(
                     field if value is True else f"{field}-{value:g}" if isinstance(value, float) else f"{field}-{value}"
@@ -89,7 +92,7 @@ def run_control(run: Path, c: Control, out: Path | None = None, progress: bool =
     """Train the control's learner on ``run``'s participants in ``out`` (default ``run/controls/NAME``);
     return its record (:func:`~.driving.learner_record`) with the control's settings. Resumes."""
     run = Path(run)
-    people = load_participants(run)
+    people = load_participants(run, c.answers_by)
     cfg = configure(people.cfg, c)
     out = Path(out) if out is not None else run / "controls" / c.name
     done = out / "record.json"

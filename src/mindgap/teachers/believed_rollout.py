@@ -18,7 +18,10 @@ started braking at step t in the clip), ``advance`` is the world's own determini
 (:func:`~mindgap.envs.driving.world.advance`), and the last term charges a clip whose crash (or
 absence of one) the participant's rollout of the same decisions does not reproduce: a crash
 they did not expect, or one they expected that did not come. Steps after the believed rollout
-ended (it crashed) are not scored; the crash term has said what there is to say. With
+ended (it crashed) are not scored; the crash term has said what there is to say. Without the
+crash term (``crash=False``, the study's ``--answers-by rollout-behaviour``) the participant judges
+the decisions alone, as the study's question asks ("How should your autonomous car behave?"),
+however the road answered them. With
 ``cfg.relative`` each decision is scored against the most expected one in its state, as for the
 state protocol (:class:`~mindgap.teachers.preference.TeacherConfig`).
 
@@ -73,8 +76,11 @@ def clip_crashed(seg: Segments) -> jax.Array:
     return jnp.any((seg.mask > 0) & (seg.next_obs[..., 6] > 0.5), -1)
 
 
-def believed_scores(seg: Segments, policy: Params, belief: DrivingParams, cfg: TeacherConfig) -> jax.Array:
-    """S_i of each clip (module docstring): seg [K, L, ·] → [K]."""
+def believed_scores(
+    seg: Segments, policy: Params, belief: DrivingParams, cfg: TeacherConfig, crash: bool = True
+) -> jax.Array:
+    """S_i of each clip (module docstring): seg [K, L, ·] → [K]. ``crash=False`` leaves the crash term out:
+    the participant judges the decisions alone, however the road answered them."""
 
     def one(obs, act, next_obs, mask):
         o_hat, live, crashed = believed_steps(obs, act, next_obs, mask, belief)
@@ -85,10 +91,13 @@ def believed_scores(seg: Segments, policy: Params, belief: DrivingParams, cfg: T
         return discounted_sum(per_step, mask, cfg.gamma), crashed
 
     score, believed_crash = jax.vmap(one)(seg.obs, seg.act, seg.next_obs, seg.mask)
-    surprise = jnp.where(clip_crashed(seg) != believed_crash, cfg.log_t_floor, 0.0)
-    return score + surprise
+    if not crash:
+        return score
+    return score + jnp.where(clip_crashed(seg) != believed_crash, cfg.log_t_floor, 0.0)
 
 
-def believed_per_step(seg: Segments, policy: Params, belief: DrivingParams, cfg: TeacherConfig) -> jax.Array:
+def believed_per_step(
+    seg: Segments, policy: Params, belief: DrivingParams, cfg: TeacherConfig, crash: bool = True
+) -> jax.Array:
     """S_i / n over the n decisions each clip holds: [K] (the rating's and the sanity item's per-step form)."""
-    return believed_scores(seg, policy, belief, cfg) / jnp.maximum(seg.mask.sum(-1), 1)
+    return believed_scores(seg, policy, belief, cfg, crash) / jnp.maximum(seg.mask.sum(-1), 1)

@@ -15,8 +15,9 @@ A participant of the training phase
   (discrete SAC in the world as they imagine it; trained by the experiment,
   :mod:`~mindgap.experiments.driving`), and **answers expectation queries** by Bradley–Terry
   on how expected the clip's *decisions* look when the participant plays them out in the world
-  they believe in (``rollout=True``, the study's default:
-  :mod:`~mindgap.teachers.believed_rollout`), or on Σ_t [log T_H + log π_H] at the clip's own
+  they believe in (``rollout=True``, the study's default, with or without charging a crash their
+  rollout does not reproduce: :mod:`~mindgap.teachers.believed_rollout`), or on
+  Σ_t [log T_H + log π_H] at the clip's own
   states — the identifiable protocol (docs/experiments/identifiability.md), exactly
   :mod:`~mindgap.teachers.expectation`'s person — kept as an option (:class:`CrowdTeacher`
   asks one participant per query).
@@ -218,7 +219,7 @@ def participant_reward(p: RewardH, obs: jax.Array, act: jax.Array, next_obs: jax
 @partial(
     jax.tree_util.register_dataclass,
     data_fields=["beliefs", "policies", "attentive"],
-    meta_fields=["env", "cfg", "rollout"],
+    meta_fields=["env", "cfg", "rollout", "crash"],
 )
 @dataclasses.dataclass(frozen=True)
 class CrowdTeacher:
@@ -247,6 +248,8 @@ class CrowdTeacher:
     """Score a clip by its decisions played out in the believed world
     (:func:`~mindgap.teachers.believed_rollout.believed_scores`) instead of Σ log T_H + log π_H
     at its own states."""
+    crash: bool = True
+    """With ``rollout``: charge a crash the participant's rollout does not reproduce."""
 
     @property
     def size(self) -> int:
@@ -257,7 +260,7 @@ class CrowdTeacher:
 
         def one(belief, policy):
             if self.rollout:
-                return believed_scores(seg, policy, belief, self.cfg)
+                return believed_scores(seg, policy, belief, self.cfg, self.crash)
             return segment_scores(seg, ExpectationTeacher(belief, policy, self.env), self.cfg)
 
         return jax.vmap(one)(self.beliefs, self.policies)
@@ -337,6 +340,7 @@ def rate_rollouts(
     noise: float,
     belief=None,
     cfg: TeacherConfig = TeacherConfig(),
+    crash: bool = True,
 ) -> np.ndarray:
     """One rater's 1–10 ratings of rollouts ``obs [R, T+1, d]``, ``act [R, T, 1]``, ``alive [R, T]`` (module docstring).
 
@@ -349,7 +353,7 @@ def rate_rollouts(
         return np.asarray(jax.random.randint(k_rand, (r,), RATING[0], RATING[1] + 1), np.float64)
     if belief is not None:
         seg = Segments(obs[:, :-1], act, obs[:, 1:], alive.astype(jnp.float32))
-        e = jnp.exp(believed_per_step(seg, policy, belief, cfg))
+        e = jnp.exp(believed_per_step(seg, policy, belief, cfg, crash))
     else:
         e = jax.vmap(lambda o, a, m: expectedness(policy, o, a, m))(obs[:, :-1], act, alive)
     mean = RATING[0] + (RATING[1] - RATING[0]) * e
