@@ -27,8 +27,8 @@ state protocol (:class:`~mindgap.teachers.preference.TeacherConfig`).
 
 Participants answer by Bradley–Terry on S_i (:class:`~mindgap.teachers.drivers.CrowdTeacher`)
 and rate 1–10 by the geometric-mean form of §2.2.1, 1 + 9 · exp(S_i / n) over the n decisions
-of the clip (:func:`~mindgap.teachers.drivers.rate_rollouts`), so a crash the participant did
-not expect rates lowest. Written by hand: the rollout is the scenario's own step with the
+of the clip (:func:`~mindgap.teachers.drivers.rate_rollouts`; with the crash term, a crash the
+participant did not expect rates lowest). Written by hand: the rollout is the scenario's own step with the
 participant's expected draws, which no library provides.
 """
 
