@@ -32,8 +32,10 @@ import jax
 import jax.numpy as jnp
 
 from ..algorithms import eps as eps_alg
+from ..teachers.drivers import check_sleet_level
 from ..teachers.expectation import ExpectationTeacher
 from . import driving as dr
+from . import prefbias_common as pc
 from ._runfolder import RunFolder
 from .driving_probes import load_participants
 
@@ -58,7 +60,7 @@ class Control:
         if self.exact and (self.coin or self.only):
             raise ValueError("--exact asks no queries: it does not combine with --coin or --only")
         if self.road is not None:
-            dr.dv.check_sleet_level(self.road)
+            check_sleet_level(self.road)
 
     @property
     def name(self) -> str:
@@ -108,9 +110,7 @@ def run_control(run: Path, c: Control, out: Path | None = None, progress: bool =
     folder = RunFolder(out, cfg)
     job = next(j for j in dr.jobs(cfg) if j.key == f"{dr.WORLD}/{c.method}")
     world = dr.world_of(cfg, people.people["engineered_weights"])
-    learner = (
-        dataclasses.replace(job.cfg, teacher=dataclasses.replace(job.cfg.teacher, beta=0.0)) if c.coin else job.cfg
-    )
+    learner = pc.coin_flips(job.cfg) if c.coin else job.cfg
     kw = dict(seeds=cfg.seeds, out=out / "train", progress=progress)
     if c.exact is not None:
         i = pids.index(c.exact)
