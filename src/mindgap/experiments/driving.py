@@ -20,7 +20,7 @@ learner resumes from its engine checkpoint): ``driving/people``, ``driving/sac``
 ``driving/drlhp``, ``driving/eps`` (each vmaps its seeds), ``driving/testing``.
 
 Measured per method, over seeds, on ``rollouts`` greedy episodes per seed in the sleety
-world (:func:`behaviour`): return under r_A (Table 5), collision rate, the first lane change
+world (:func:`~.driving_measures.behaviour`): return under r_A (Table 5), collision rate, the first lane change
 (decisions after the front car starts braking; share of episodes with one), whether the car
 braked before it, and the smallest bumper gap to the front car while in line with it.
 Outputs: ``results.csv``, ``participants.csv``, ``ratings.csv``, ``curves.csv``,
@@ -48,12 +48,12 @@ from ..checkpoint import load_pytree, save_pytree
 from ..data.rollouts_file import rollout_record, write_rollouts
 from ..data.segments import Segments
 from ..envs.driving import STUDY_IMPORTANCE, importance_weights, make_world
-from ..envs.driving.params import LANE_WIDTH, LENGTH, SLOWER, WIDTH
-from ..envs.driving.world import DIST_SCALE, EGO_OBS
+from ..envs.driving.params import SLOWER
 from ..teachers import drivers as dv
 from ..teachers.preference import TeacherConfig
 from . import prefbias_common as pc
 from ._runfolder import RunFolder, to_jsonable, write_csv
+from .driving_measures import behaviour, greedy_episodes, learner_record
 from .driving_report import COIN, METHODS, WORLD
 from .driving_report import write_outputs as report_outputs
 
@@ -181,11 +181,11 @@ def jobs(cfg: DrivingConfig) -> list[pc.Job]:
     sac = _sac_cfg(cfg)
     out = [pc.Job(f"{WORLD}/people", WORLD, "people", "participants", cfg.population, {})]
     out.append(pc.Job(f"{WORLD}/sac", WORLD, "sac", "SAC", sac, {}))
-    for method, label, tags in (("drlhp", "DRLHP", {}), ("eps", "EPS", {"lam": cfg.eps.lam})):
-        learner = dataclasses.replace(cfg.eps, method=method, teacher=cfg.answer_cfg)
-        out.append(pc.Job(f"{WORLD}/{method}", WORLD, method, label, learner, tags))
-    drlhp = dataclasses.replace(cfg.eps, method="drlhp", teacher=cfg.answer_cfg)
-    out.append(pc.Job(COIN, WORLD, "drlhp", "DRLHP (coin-flip answers)", pc.coin_flips(drlhp), {"person": "coin"}))
+    learners = {m: dataclasses.replace(cfg.eps, method=m, teacher=cfg.answer_cfg) for m in ("drlhp", "eps")}
+    out.append(pc.Job(f"{WORLD}/drlhp", WORLD, "drlhp", "DRLHP", learners["drlhp"], {}))
+    out.append(pc.Job(f"{WORLD}/eps", WORLD, "eps", "EPS", learners["eps"], {"lam": cfg.eps.lam}))
+    coin = pc.coin_flips(learners["drlhp"])
+    out.append(pc.Job(COIN, WORLD, "drlhp", "DRLHP (coin-flip answers)", coin, {"person": "coin"}))
     out.append(pc.Job(f"{WORLD}/testing", WORLD, "testing", "testing phase", cfg.raters, {}))
     return out
 
@@ -253,7 +253,7 @@ def _compute(cfg: DrivingConfig):
         res = train(folder, cfg, world, people, job, seeds, fresh=fresh, progress=progress)
         save_pytree(_actor_path(folder, job.key), res["carry"].loop.sac.params.actor)
         actors = res["carry"].loop.sac.params.actor
-        return learner_record(cfg, world, actors, res)
+        return learner_record(world, actors, res, cfg.rollouts)
 
     return compute
 
@@ -462,68 +462,6 @@ def expected_behaviour(world, drivers, actors) -> dict[str, list]:
         out["expects_lane_change"].append(float(np.mean(b["changed"])))
         out["expects_braking_first"].append(float(np.mean(b["braked_first"])))
     return out
-
-
-# ---------------------------------------------------------------------------------------
-# measuring a policy
-
-
-def greedy_episodes(world, actor, key, count: int):
-    """``count`` greedy episodes of one actor in ``world``: (obs [E, T+1, d], act [E, T, 1], alive [E, T], rewards [E, T])."""
-    policy = greedy_policy(world.env)
-    obs, rew, alive = rollouts(key, world.env, world.params, policy, actor, count, world.horizon)
-    act = jax.vmap(jax.vmap(lambda o: policy(actor, o)))(obs[:, :-1])
-    return obs, act, alive, rew
-
-
-def behaviour(obs: np.ndarray, act: np.ndarray, alive: np.ndarray, world) -> dict[str, np.ndarray]:
-    """Per episode: collided; the first lane change in decisions after the front car starts braking (NaN:
-    none; negative: before it); whether it changed lane; whether it braked (SLOWER) before its first lane
-    change after the onset; the smallest bumper gap [m] to the front car while it is ahead and the
-    two cars overlap sideways (centres less than a car's width apart: in line, so the gap is one a
-    collision would close; a car passing beside it mid-lane-change has no bumper gap to it)."""
-    start = obs[:, 0, 3]
-    steps = alive.sum(-1).astype(int)
-    out = {k: [] for k in ("collided", "first_change", "changed", "braked_first", "min_gap")}
-    for e in range(obs.shape[0]):
-        n = steps[e]
-        o, a = obs[e, : n + 1], act[e, :n, 0]
-        onset = np.flatnonzero(o[:, 7] > 0.5)
-        onset = int(onset[0]) if onset.size else n
-        lane = np.flatnonzero(np.round(o[1:, 3]) != np.round(start[e]))
-        change = int(lane[0]) if lane.size else None  # the action at step `change` moved the target lane
-        out["collided"].append(float(o[-1, 6] > 0.5))
-        out["changed"].append(float(change is not None))
-        out["first_change"].append(np.nan if change is None else float(change + 1 - onset))
-        before = a[onset - 1 : change] if change is not None else a[max(onset - 1, 0) :]
-        out["braked_first"].append(float(np.any(np.round(before) == SLOWER)))
-        in_line = np.abs(o[:, 0] - o[:, EGO_OBS + 1]) * LANE_WIDTH < WIDTH  # lateral positions are in lane widths
-        same = in_line & (o[:, EGO_OBS] > 0)  # in line with it, and it is ahead
-        gap = o[:, EGO_OBS] * DIST_SCALE - LENGTH
-        out["min_gap"].append(float(gap[same].min()) if same.any() else np.nan)
-    return {k: np.asarray(v, np.float64) for k, v in out.items()}
-
-
-def learner_record(cfg: DrivingConfig, world, actors, res: dict) -> dict:
-    """A learner's record: curve, and per seed the greedy episodes' return and behaviour."""
-    seeds = jax.tree.leaves(actors)[0].shape[0]
-    per = {k: [] for k in ("return", "collided", "first_change", "changed", "braked_first", "min_gap")}
-    for s in range(seeds):
-        actor = jax.tree.map(lambda a, s=s: a[s], actors)
-        obs, act, alive, rew = greedy_episodes(world, actor, rng.key(20_000 + s), cfg.rollouts)
-        b = behaviour(np.asarray(obs), np.asarray(act), np.asarray(alive), world)
-        per["return"].append(float(np.asarray(rew).sum(-1).mean()))
-        for k, v in b.items():
-            per[k].append(float(np.nanmean(v)) if np.isfinite(v).any() else None)
-    final = np.asarray(res["final_returns"], np.float64)
-    if not np.all(np.isfinite(final)):
-        raise FloatingPointError("non-finite returns: the run diverged")
-    return {
-        "seeds": seeds,
-        "curve": [[int(s), int(t), float(r), int(q)] for s, t, r, q in res["curve"]],
-        "final": [float(x) for x in final.mean(1)],
-        **per,
-    }
 
 
 # ---------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ The participants (their answers to Fig. 32, beliefs and π_H) are the costly par
 ``mindgap reproduce driving``; a learner takes a few minutes. A control trains DRLHP or EPS
 (the full preset's schedule and seeds) on the participants of a run folder, in a folder of its
 own, with one thing changed, and measures the behaviours the experiment measures
-(:func:`~.driving.behaviour`; docs/experiments/driving.md, "Gates and controls"):
+(:func:`~.driving_measures.behaviour`; docs/experiments/driving.md, "Gates and controls"):
 
 * ``coin``: every answer a fair coin (Bradley–Terry at β = 0) — what a learner that follows the
   answers must *not* do as it does on the participants' answers (K1);
@@ -37,6 +37,7 @@ from ..teachers.expectation import ExpectationTeacher
 from . import driving as dr
 from . import prefbias_common as pc
 from ._runfolder import RunFolder
+from .driving_measures import learner_record
 from .driving_probes import load_participants
 
 
@@ -92,7 +93,7 @@ def configure(cfg: dr.DrivingConfig, c: Control) -> dr.DrivingConfig:
 
 def run_control(run: Path, c: Control, out: Path | None = None, progress: bool = True) -> dict:
     """Train the control's learner on ``run``'s participants in ``out`` (default ``run/controls/NAME``);
-    return its record (:func:`~.driving.learner_record`) with the control's settings. Resumes."""
+    return its record (:func:`~.driving_measures.learner_record`) with the control's settings. Resumes."""
     run = Path(run)
     people = load_participants(run, c.answers_by)
     cfg = configure(people.cfg, c)
@@ -130,7 +131,7 @@ def run_control(run: Path, c: Control, out: Path | None = None, progress: bool =
                 attentive=jnp.ones((1,), bool),
             )
         res = eps_alg.train(world, learner, crowd, person_name=c.only or "participants", **kw)
-    rec = dr.learner_record(cfg, world, res["carry"].loop.sac.params.actor, res)
+    rec = learner_record(world, res["carry"].loop.sac.params.actor, res, cfg.rollouts)
     rec["control"] = dataclasses.asdict(c)
     rec["answers_by"] = cfg.answers_by
     from .._io import atomic_write

@@ -23,9 +23,10 @@ LABELS = {"eps": "EPS", "sac": "SAC", "drlhp": "DRLHP", "drlhp-coin": "DRLHP, co
 PAPER = {"eps": (7.6, 11.0), "sac": (5.0, 11.9), "drlhp": (5.9, 9.6)}
 """Table 5: (average rating, average return) of each method in the study."""
 WORLD = "driving"
-COIN = f"{WORLD}/drlhp-coin"
-"""The control job: DRLHP on answers that are fair coins (Bradley–Terry at β = 0), everything else as DRLHP's."""
 CONTROL = "drlhp-coin"
+"""The control: DRLHP on answers that are fair coins (Bradley–Terry at β = 0), everything else as DRLHP's."""
+COIN = f"{WORLD}/{CONTROL}"
+"""The control's job key."""
 
 BEHAVIOURS = ("collided", "changed", "first_change", "braked_first", "min_gap")
 
@@ -104,7 +105,7 @@ def _table(cfg, by: dict, people: dict | None, testing: dict | None) -> str:
         f"sleet {cfg.sleet:g}; EPS λ = {cfg.eps.lam:g}.\n\n" + pc.markdown(head, t5)
     )
     shown = [*cols, *([CONTROL] if CONTROL in by else [])]  # the control beside the methods
-    beh = [[name, *(_behaviour_cell(by[m], i) for m in shown)] for i, name in enumerate(BEHAVIOUR_ROWS)]
+    beh = [[name, *(cell(by[m]) for m in shown)] for name, cell in BEHAVIOUR_ROWS]
     md += "\ndriving behaviours (Figs. 34–36), mean over seeds of each seed's greedy episodes:\n\n" + pc.markdown(
         ["", *(LABELS[m] for m in shown)], beh
     )
@@ -120,25 +121,14 @@ def _table(cfg, by: dict, people: dict | None, testing: dict | None) -> str:
 
 
 BEHAVIOUR_ROWS = (
-    "collision rate",
-    "episodes with a lane change",
-    "first lane change (decisions after the front car brakes)",
-    "braked before changing lane",
-    "smallest gap to the front car, in line with it [m]",
-    "seeds braking first (in most of their episodes)",
+    ("collision rate", lambda row: pc.share(row["collided_mean"])),
+    ("episodes with a lane change", lambda row: pc.share(row["changed_mean"])),
+    ("first lane change (decisions after the front car brakes)", lambda row: pc.fmt(row["first_change_mean"])),
+    ("braked before changing lane", lambda row: pc.share(row["braked_first_mean"])),
+    ("smallest gap to the front car, in line with it [m]", lambda row: pc.fmt(row["min_gap_mean"])),
+    ("seeds braking first (in most of their episodes)", lambda row: f"{row['seeds_braking_first']} of {row['seeds']}"),
 )
-
-
-def _behaviour_cell(row: dict, i: int) -> str:
-    """Row ``i`` of :data:`BEHAVIOUR_ROWS` for one method's results row."""
-    return [
-        lambda: pc.share(row["collided_mean"]),
-        lambda: pc.share(row["changed_mean"]),
-        lambda: pc.fmt(row["first_change_mean"]),
-        lambda: pc.share(row["braked_first_mean"]),
-        lambda: pc.fmt(row["min_gap_mean"]),
-        lambda: f"{row['seeds_braking_first']} of {row['seeds']}",
-    ][i]()
+"""The behaviours table's rows: (label, the cell of one method's results row)."""
 
 
 def _claims(by: dict) -> list[dict]:

@@ -345,8 +345,8 @@ def rate_rollouts(
     """One rater's 1–10 ratings of rollouts ``obs [R, T+1, d]``, ``act [R, T, 1]``, ``alive [R, T]`` (module docstring).
 
     With ``belief`` (the world's params as the rater believes it) the decisions are played out in
-    that world, exp(S_i / n) of :mod:`~mindgap.teachers.believed_rollout`, so a crash the rater did
-    not expect rates lowest; without, the geometric mean of π_H at the rollout's own states."""
+    that world, exp(S_i / n) of :mod:`~mindgap.teachers.believed_rollout` (with ``crash``, a crash the
+    rater did not expect charged); without, the geometric mean of π_H at the rollout's own states."""
     k_noise, k_rand = jax.random.split(key)
     r = obs.shape[0]
     if not attentive:
