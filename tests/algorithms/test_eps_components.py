@@ -12,6 +12,7 @@ from mindgap.algorithms.eps_reward import (
     cost_offsets,
     entropy_mean_from_replay,
     environment_entropy,
+    eps_absorbing,
     eps_reward,
     eps_reward_params,
     eps_sac_config,
@@ -24,12 +25,12 @@ from mindgap.algorithms.explicability import explicability
 from mindgap.algorithms.policy_shaping import ShapedPolicy, gaussian_product, shaped_dist, shaped_sample
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
-from mindgap.data.replay import replay_add, replay_init
+from mindgap.data.replay import relabel, replay_add, replay_init
 from mindgap.envs.terrain import load_world, observe, world_from_dict
 from mindgap.envs.terrain.params import TerrainState
 from mindgap.models.agent_dynamics import dynamics_entropy, gaussian_entropy
 from mindgap.models.gaussian_dynamics import DynamicsModel, Norm
-from mindgap.models.reward_ensemble import REWARD_BOUND
+from mindgap.models.reward_ensemble import REWARD_BOUND, RewardConfig, reward_init
 from mindgap.models.squashed import squashed_log_prob
 
 
@@ -144,6 +145,33 @@ def test_h_t_is_weighted_as_u_h_is_and_a_cost_by_default(d1, key):
     assert not np.allclose(eps_reward(params, obs, act, nxt), r_a + cfg.lam * (u + h), rtol=1e-3)
 
 
+def test_a_person_who_judges_decisions_leaves_h_t_out(d1, key):
+    """§4.3.1: "only the observable part needs to be considered". A person who judges decisions alone
+    (``judged="decisions"``) makes the λ-term the policy's KL: no T_A is read, H_T counts 0, and the
+    constants (``h_shift``) stay as they are."""
+    from mindgap.algorithms import engine, eps
+    from mindgap.algorithms.eps_config import eps_config
+
+    obs = jnp.stack([_obs(d1, (2.5, 2.5)), _obs(d1, (4.5, 1.5))])
+    act, nxt = jnp.zeros((2, 2)), obs
+    w_args = engine.WorldArgs(d1.params, d1.obs_units(), None)
+    for judged, has_t in (("transitions", True), ("decisions", False)):
+        cfg = eps_config("fast", judged=judged)
+        model, _, _ = eps._init(key, d1.env, cfg)
+        model = model._replace(h_shift=jnp.float32(0.4), u_norm=jnp.array([0.3, 0.8], jnp.float32))
+        params = eps._reward_params(model, w_args, d1.env, cfg)
+        assert (params.dynamics is not None) == has_t
+        u = (raw_u(params.u_params, obs, act, nxt) - 0.3) / 0.8
+        h_t = environment_entropy(params, obs, act) + 0.4
+        plain = world_reward(params, obs, act, nxt) + cfg.lam * (u - 0.4 / cfg.nats_per_unit)
+        np.testing.assert_allclose(
+            eps_reward(params, obs, act, nxt), plain + cfg.lam * h_t / cfg.nats_per_unit, rtol=1e-5
+        )
+        assert bool(jnp.all(h_t != 0)) == has_t
+    with pytest.raises(ValueError, match="judged"):
+        eps_config("fast", judged="outcomes").check()
+
+
 def test_normalisation_statistics_come_from_the_filled_buffer(d1):
     buf = replay_init(16, 2, 2)
     xs = np.linspace(-0.9, 0.9, 10)
@@ -191,6 +219,35 @@ def test_as_a_cost_the_lambda_term_never_pays_to_linger(d1):
     assert float(term.max()) == pytest.approx(0.0, abs=1e-5) and float(term.min()) < -0.5  # ≤ 0, 0 at the top
     stay, end = values(cost)
     assert stay < 0 < end  # as a cost, lingering costs what its steps cost
+
+
+def test_with_absorbing_states_the_lambda_terms_constant_does_not_decide_when_to_end(d1, key):
+    """Preferences fix u_H only up to a constant per step; without absorbing steps that constant
+    decides whether an episode that ends sooner is worth more (the cost form pays to end, the
+    centred one to linger). With them (``EPSConfig.absorbing``) an ended episode's λ-term goes on at
+    its absorbing value, so moving u_H's or the entropies' constant moves every episode's discounted
+    return alike: the difference between a one-step and a three-step episode stays where it was."""
+    lam, gamma, w = 2.0, 0.9, 1 / 7
+    u_params = reward_init(key, 2, 2, RewardConfig(members=2, hidden=(8,)), absorbing="single").params
+    buf = replay_init(8, 2, 2)
+    short = [((4.5, 1.5), (5.2, 1.5))]  # into the goal at once
+    long = [((2.5, 1.5), (3.5, 1.5)), ((3.5, 1.5), (4.5, 1.5)), ((4.5, 1.5), (5.2, 1.5))]
+    for episode in (short, long):
+        for t, (a, b) in enumerate(episode):
+            end = t == len(episode) - 1
+            buf = replay_add(buf, _obs(d1, a), jnp.array([1.0, 0.0]), _obs(d1, b), 0.0, 0.0, end, t)
+    params = eps_reward_params(d1, u_params, constant_dynamics([-1.0, -1.0], 0.01), lam, min_std=0.01, h_weight=w)
+
+    def gap(p, absorbing):
+        kw = dict(absorbing_fn=eps_absorbing, gamma=gamma) if absorbing else {}
+        r = np.asarray(relabel(buf, eps_reward, p, **kw).reward, np.float64)
+        return r[0] - (r[1] + gamma * r[2] + gamma**2 * r[3])
+
+    moved = dataclasses.replace(params, u_mean=params.u_mean + 1.3, h_shift=params.h_shift + 0.7)
+    assert gap(moved, True) == pytest.approx(gap(params, True), abs=1e-4)
+    # the shift is −λ(1.3 + 0.7 w) a step: without absorbing steps the short episode escapes two of them
+    escaped = lam * (1.3 + 0.7 * w) * (gamma + gamma**2)
+    assert gap(moved, False) - gap(params, False) == pytest.approx(escaped, rel=1e-4)
 
 
 def test_the_reshaped_reward_plugs_into_the_sac_loop(d1, key):

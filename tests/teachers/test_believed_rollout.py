@@ -74,6 +74,11 @@ def test_a_dry_road_believer_sees_braking_on_sleet_work_and_is_surprised_by_its_
     assert np.allclose(decisions, -np.log(5.0) * steps, rtol=1e-5)  # the decisions alone: no crash term
     per_step = np.asarray(br.believed_per_step(seg, uniform, DRY, TeacherConfig()))
     assert np.allclose(per_step, scores / steps, rtol=1e-6)
+    # judged over the whole clip: a crash clip no longer gains from holding fewer decisions
+    length = seg.mask.shape[-1]
+    assert (steps[crashed] < length).all()
+    whole = np.asarray(br.believed_scores(seg, uniform, DRY, TeacherConfig(), crash=False, whole_clip=True))
+    assert np.allclose(whole, -np.log(5.0) * length, rtol=1e-5)
 
 
 def test_brakers_who_believe_the_road_dry_find_braking_on_sleet_expected_played_out_not_at_its_states(key):

@@ -57,8 +57,10 @@ from .eps_config import EPSConfig
 from .eps_reward import (
     EPSRewardParams,
     ExactSurrogate,
+    absorbing_u,
     cost_offsets,
     entropy_mean_from_replay,
+    eps_absorbing,
     eps_reward,
     normalised_u,
     policy_entropy_max,
@@ -86,11 +88,23 @@ def _reward_fn(cfg: EPSConfig):
     return eps_reward if cfg.method == "eps" else expectation_reward
 
 
+def _absorbing_fn(cfg: EPSConfig):
+    """What an absorbing step earns (``cfg.absorbing``): the λ-term's for EPS, the standardised u_H's for DRLHP."""
+    if cfg.absorbing is None:
+        return None
+    return eps_absorbing if cfg.method == "eps" else absorbing_u
+
+
 def u_params(model: EPSModel, person: ExpectationTeacher, cfg: EPSConfig):
     """What u_H is computed from: one seed's ensemble, or the person's own score (``cfg.surrogate``)."""
     if cfg.surrogate == "exact":
         return ExactSurrogate(person, jnp.asarray(cfg.teacher.log_t_floor, jnp.float32))
     return model.reward.params
+
+
+def _fits_dynamics(cfg: EPSConfig) -> bool:
+    """Whether T_A is fitted and H_T is in the reward: EPS on a person who judges transitions."""
+    return cfg.method == "eps" and cfg.judged == "transitions"
 
 
 def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig) -> EPSRewardParams:
@@ -100,7 +114,7 @@ def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig) -> EPSRe
         u_params(m, w.oracle, cfg),
         m.u_norm[0],
         m.u_norm[1],
-        m.dynamics,
+        m.dynamics if _fits_dynamics(cfg) else None,
         jnp.asarray(cfg.dynamics.min_std, f),
         m.h_shift,
         jnp.asarray(1.0 / cfg.nats_per_unit, f),
@@ -115,7 +129,7 @@ def _init(key, env: Env, cfg: EPSConfig):
     k_loop, k_rew, k_dyn, k_run = jax.random.split(key, 4)
     norm = Norm(jnp.zeros(d + a), jnp.ones(d + a), jnp.zeros(d), jnp.ones(d))  # replaced at the first round
     model = EPSModel(
-        reward_init(k_rew, d, a, cfg.reward),
+        reward_init(k_rew, d, a, cfg.reward, absorbing=cfg.absorbing),
         dynamics_init(k_dyn, d, a, cfg.dynamics, norm),
         jnp.array([0.0, 1.0], jnp.float32),
         jnp.zeros((), jnp.float32),
@@ -127,7 +141,7 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
     """Lines 4–5 of Algorithm 3: refit T_A to the buffer D (afresh the first time), pick the queries."""
     key, k_dyn, k_fresh, k_q, k_t, k_r = jax.random.split(key, 6)
     dyn = m.dynamics
-    if cfg.method == "eps":
+    if _fits_dynamics(cfg):
         valid = jnp.arange(buf.capacity) < buf.size
         n = n_actions(env) or None  # a discrete action enters T_A one-hot
         norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid, act_width=n)
@@ -145,6 +159,7 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
             cfg.segment,
             cfg.sampler,
             cfg.candidates,
+            absorbing=cfg.absorbing is not None,
             from_start=cfg.queries_from_start,
         )
     return m._replace(dynamics=dyn, started=jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
@@ -167,8 +182,9 @@ def _learn(m: EPSModel, prefs, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig)
 
 
 def _reward(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig):
-    """Line 10: r_A + λ(u_H + H_T) for EPS, the standardised u_H alone for DRLHP."""
-    return _reward_fn(cfg), _reward_params(m, w, env, cfg), None
+    """Line 10: r_A + λ(u_H + H_T) for EPS, the standardised u_H alone for DRLHP (and the absorbing
+    steps' value with ``cfg.absorbing``)."""
+    return _reward_fn(cfg), _reward_params(m, w, env, cfg), _absorbing_fn(cfg)
 
 
 def _where(cond, a, b):
@@ -176,7 +192,13 @@ def _where(cond, a, b):
 
 
 LEARNER = Learner(
-    _init, _select, _learn, _reward, agent_sac=lambda cfg: cfg.agent_sac(), asks=lambda cfg: cfg.surrogate == "learned"
+    _init,
+    _select,
+    _learn,
+    _reward,
+    absorbing=lambda cfg: cfg.absorbing is not None,
+    agent_sac=lambda cfg: cfg.agent_sac(),
+    asks=lambda cfg: cfg.surrogate == "learned",
 )
 """EPS (Algorithm 3) and expectation-DRLHP as a :class:`~mindgap.algorithms.engine.Learner`."""
 

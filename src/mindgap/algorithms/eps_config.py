@@ -10,7 +10,7 @@ import dataclasses
 
 from ..feedback.queries import SAMPLERS
 from ..models.gaussian_dynamics import DynamicsConfig
-from ..models.reward_ensemble import RewardConfig
+from ..models.reward_ensemble import ABSORBING_STATES, RewardConfig
 from .engine import FAST_SCHEDULE, Schedule
 from .eps_reward import eps_sac_config
 from .sac import SACConfig
@@ -18,6 +18,7 @@ from .sac import SACConfig
 METHODS = ("eps", "drlhp")
 SURROGATES = ("learned", "exact")
 OFFSETS = ("cost", "centred", "none")
+JUDGED = ("transitions", "decisions")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,6 +58,21 @@ class EPSConfig(Schedule):
     ``centred``: u_H and H_T centred over the buffer (zero-mean: a bonus wherever the person's model
     rates a step above average; the previous default). ``none``: u_H centred, H_T as Eq. 4.6 writes it."""
 
+    judged: str = "transitions"
+    """What the person's expectation covers. ``transitions``: state and action (Eq. 4.3 as §4.3.1 assumes),
+    u_H standing for log T_H + log π_H and H_T the dynamics half of the KL. ``decisions``: the
+    actions alone — §4.3.1's remark that "only the observable part needs to be considered", for a
+    person who judges what the agent decided and not the world's answer (the driving study's
+    participants): u_H stands for log π_H, the KL is the policy's, and H_T is not part of it (T_A is
+    not fitted)."""
+    absorbing: str | None = None
+    """Absorbing states for u_H (Kostrikov et al. 2019, as :mod:`~mindgap.algorithms.pbrl`'s): None (the
+    default), or ``single`` / ``terminal``. With them the queried segments keep the steps after an
+    episode's end, u_H learns what the rest of an ended clip is worth, and an ended episode's
+    λ-term goes on at that value (``γ x_abs / (1 − γ)``, :func:`~.eps_reward.eps_absorbing`), so that
+    the λ-term's constant per step, which preferences leave open, is paid on every step of the
+    horizon and no longer decides whether ending an episode early pays (docs/methods/eps.md)."""
+
     surrogate: str = "learned"
     """``learned``: u_H is the ensemble fitted to the person's answers (Algorithm 3). ``exact``:
     u_H is the person's own per-step log T_H + log π_H (:class:`~.eps_reward.ExactSurrogate`),
@@ -71,6 +87,10 @@ class EPSConfig(Schedule):
             raise ValueError(f"unknown surrogate {self.surrogate!r}: choose from {', '.join(SURROGATES)}")
         if self.offset not in OFFSETS:
             raise ValueError(f"unknown offset {self.offset!r}: choose from {', '.join(OFFSETS)}")
+        if self.judged not in JUDGED:
+            raise ValueError(f"judged must be one of {', '.join(JUDGED)}, got {self.judged!r}")
+        if self.absorbing is not None and self.absorbing not in ABSORBING_STATES:
+            raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)} or None, got {self.absorbing!r}")
         if self.sampler not in SAMPLERS:
             raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
         if self.lam < 0:
@@ -85,6 +105,10 @@ class EPSConfig(Schedule):
         d = super().as_dict()
         if self.surrogate == "learned":  # recorded only when set, so earlier run folders still resume
             del d["surrogate"]
+        if self.absorbing is None:
+            del d["absorbing"]
+        if self.judged == "transitions":
+            del d["judged"]
         return d
 
     def agent_sac(self) -> SACConfig:

@@ -73,7 +73,7 @@ from ..envs.interface import Discrete, Env, World
 from ..models.agent_dynamics import dynamics_entropy
 from ..models.gaussian_dynamics import DynamicsModel
 from ..models.mlp import Params
-from ..models.reward_ensemble import ensemble_reward
+from ..models.reward_ensemble import absorbing_reward, ensemble_reward
 from ..teachers.expectation import ExpectationTeacher, step_log_likelihood
 from .sac import SACConfig
 
@@ -175,7 +175,11 @@ def normalised_u(params: EPSRewardParams, obs, act, next_obs) -> jax.Array:
 
 
 def environment_entropy(params: EPSRewardParams, obs, act) -> jax.Array:
-    """H_T[s'|s,a] of T_A in cells, less ``h_shift``: [B, ·] → [B]."""
+    """H_T[s'|s,a] of T_A in cells, less ``h_shift``: [B, ·] → [B]. Without T_A (``dynamics`` None: the
+    person judges decisions alone, ``EPSConfig.judged``) the dynamics half of the KL is not in the
+    objective and H_T counts 0."""
+    if params.dynamics is None:
+        return jnp.zeros(obs.shape[:-1], jnp.float32) - params.h_shift
     h = dynamics_entropy(params.dynamics, obs, act, params.min_std, params.units)
     return h - params.h_shift
 
@@ -194,6 +198,28 @@ def eps_reward(params: EPSRewardParams, obs: jax.Array, act: jax.Array, next_obs
     r_a = world_reward(params, obs, act, next_obs)
     u_h, h_t = normalised_u(params, obs, act, next_obs), environment_entropy(params, obs, act)
     return reshape(r_a, u_h, h_t, params.lam, params.h_weight)
+
+
+def absorbing_u(params: EPSRewardParams, terminal_obs: jax.Array) -> jax.Array:
+    """u_H of the absorbing state an ended episode enters, standardised as every step's: [B, d] → [B].
+
+    The ensemble's learned ``r_abs`` (``EPSConfig.absorbing``); for an :class:`ExactSurrogate`, 0 — the
+    person's own score counts nothing after a clip's end (its steps are masked)."""
+    if isinstance(params.u_params, ExactSurrogate):
+        raw = jnp.zeros(terminal_obs.shape[:-1], jnp.float32)
+    else:
+        raw = absorbing_reward(params.u_params, terminal_obs)
+    return (raw - params.u_mean) / params.u_std
+
+
+def eps_absorbing(params: EPSRewardParams, terminal_obs: jax.Array) -> jax.Array:
+    """The λ-term of one absorbing step, ``λ [u_H,abs − H_shift / s_H]``: Eq. 4.6's with u_H its absorbing
+    value and both entropies 0 (nothing is uncertain after the end), under the same constants as a lived
+    step's. The ``absorbing_fn`` of :func:`~mindgap.data.replay.relabel`: a terminal transition gains
+    ``γ x_abs / (1 − γ)``, so every constant of the λ-term is paid on the steps after an end as on the
+    steps before it, and the offset (``EPSConfig.offset``) cannot make ending early pay or cost. r_A is 0
+    there. [B, d] → [B]."""
+    return params.lam * (absorbing_u(params, terminal_obs) - params.h_weight * params.h_shift)
 
 
 def eps_sac_config(base: SACConfig, lam: float, nats_per_unit: float) -> SACConfig:

@@ -63,6 +63,19 @@ def add_parser(sub) -> None:
         "stands for), centred (u_H and H_T centred over the buffer: a bonus above average), none (u_H centred)",
     )
     p.add_argument(
+        "--judged",
+        choices=("transitions", "decisions"),
+        default="transitions",
+        help="what the person's expectation covers: transitions (log T_H + log π_H, default) or decisions "
+        "(log π_H alone: H_T leaves the objective)",
+    )
+    p.add_argument(
+        "--absorbing",
+        choices=("single", "terminal"),
+        help="u_H with absorbing states: an ended episode's λ-term goes on at what u_H learns the rest of "
+        "an ended clip is worth (default: none)",
+    )
+    p.add_argument(
         "--surrogate",
         default="learned",
         help="learned: u_H from the person's answers (default); exact: the person's own log T_H + log π_H, "
@@ -121,6 +134,8 @@ def run(args: argparse.Namespace) -> int:
         sampler=args.sampler,
         queries_from=args.queries_from,
         offset=args.offset,
+        absorbing=args.absorbing,
+        judged=args.judged,
         surrogate=args.surrogate,
         teacher=TeacherConfig(beta=args.beta, mistake=args.mistake),
     )

@@ -125,6 +125,12 @@ class DrivingConfig:
         return dataclasses.replace(self.teacher, use_belief=self.answers_by != "decisions")
 
     @property
+    def judged(self) -> str:
+        """What the participants' expectation covers, as EPS reads it (``EPSConfig.judged``): transitions
+        when they answer by ``expectation`` (log T_H + log π_H at the clip's states), else decisions."""
+        return "transitions" if self.answers_by == "expectation" else "decisions"
+
+    @property
     def rollout(self) -> bool:
         """Whether the participants play a clip's decisions out in their believed world."""
         return self.answers_by in ("rollout", "rollout-behaviour")
@@ -145,14 +151,17 @@ def _eps(preset: str) -> EPSConfig:
     and SAC's entropy neutral to survival (``survival_entropy="neutral"``: SAC and DRLHP; EPS's H_π is
     Eq. 4.6's own term, :func:`~mindgap.algorithms.eps_reward.eps_sac_config`) — every episode here
     ends, by a crash or at the horizon, and when it ends is what the study is about
-    (docs/experiments/driving.md, "The learners follow the answers")."""
+    (docs/experiments/driving.md, "The learners follow the answers"). For the same reason u_H has an
+    absorbing state (``absorbing="single"``, :attr:`~mindgap.algorithms.eps_config.EPSConfig.absorbing`):
+    what an ended clip is worth comes from the answers, not from the λ-term's constant, which under the
+    cost form paid EPS to crash (docs/experiments/driving.md, "Gates and controls")."""
     if preset == "full":
         cfg = eps_config(
             "full", total_steps=30_000, queries=400, per_round=40, segment=10, queries_from="start", lam=2.0
         )
     else:
         cfg = eps_config("fast", segment=10, queries_from="start", lam=2.0)
-    return dataclasses.replace(cfg, sac=dataclasses.replace(cfg.sac, survival_entropy="neutral"))
+    return dataclasses.replace(cfg, absorbing="single", sac=dataclasses.replace(cfg.sac, survival_entropy="neutral"))
 
 
 def preset(name: str) -> DrivingConfig:
@@ -181,7 +190,9 @@ def jobs(cfg: DrivingConfig) -> list[pc.Job]:
     sac = _sac_cfg(cfg)
     out = [pc.Job(f"{WORLD}/people", WORLD, "people", "participants", cfg.population, {})]
     out.append(pc.Job(f"{WORLD}/sac", WORLD, "sac", "SAC", sac, {}))
-    learners = {m: dataclasses.replace(cfg.eps, method=m, teacher=cfg.answer_cfg) for m in ("drlhp", "eps")}
+    learners = {
+        m: dataclasses.replace(cfg.eps, method=m, teacher=cfg.answer_cfg, judged=cfg.judged) for m in ("drlhp", "eps")
+    }
     out.append(pc.Job(f"{WORLD}/drlhp", WORLD, "drlhp", "DRLHP", learners["drlhp"], {}))
     out.append(pc.Job(f"{WORLD}/eps", WORLD, "eps", "EPS", learners["eps"], {"lam": cfg.eps.lam}))
     coin = pc.coin_flips(learners["drlhp"])

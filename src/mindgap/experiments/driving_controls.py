@@ -16,7 +16,8 @@ own, with one thing changed, and measures the behaviours the experiment measures
   steps);
 * ``answers_by``: how the participants judge a clip (:attr:`~.driving.DrivingConfig.answers_by`);
 * ``road``: the sleet of the road the learner drives on; ``lam``: EPS's λ;
-  ``survival_entropy``: :attr:`~mindgap.algorithms.sac.SACConfig.survival_entropy`.
+  ``survival_entropy``: :attr:`~mindgap.algorithms.sac.SACConfig.survival_entropy`; ``offset`` and
+  ``absorbing``: :attr:`~mindgap.algorithms.eps_config.EPSConfig.offset` and ``.absorbing``.
 
 ``mindgap design driving --run DIR --learner drlhp|eps [...]`` runs one and prints its record.
 """
@@ -52,6 +53,8 @@ class Control:
     road: float | None = None
     lam: float | None = None
     survival_entropy: str | None = None
+    offset: str | None = None
+    absorbing: str | None = None
     seeds: int | None = None
     answers_by: str | None = None
 
@@ -67,7 +70,8 @@ class Control:
     def name(self) -> str:
         parts = [self.method]
         for field, value in (("coin", self.coin), ("only", self.only), ("exact", self.exact), ("road", self.road),
-                             ("lam", self.lam), ("survival", self.survival_entropy), ("seeds", self.seeds),
+                             ("lam", self.lam), ("survival", self.survival_entropy), ("offset", self.offset),
+                             ("absorbing", self.absorbing), ("seeds", self.seeds),
                              ("answers", self.answers_by)):  # fmt: skip
             if value not in (None, False):
                 parts.append(
@@ -83,6 +87,11 @@ def configure(cfg: dr.DrivingConfig, c: Control) -> dr.DrivingConfig:
         eps = dataclasses.replace(eps, sac=dataclasses.replace(eps.sac, survival_entropy=c.survival_entropy))
     if c.lam is not None:
         eps = dataclasses.replace(eps, lam=c.lam)
+    if c.offset is not None:
+        eps = dataclasses.replace(eps, offset=c.offset)
+    if c.absorbing is not None:
+        eps = dataclasses.replace(eps, absorbing=None if c.absorbing == "none" else c.absorbing)
+    eps.check()
     out = dataclasses.replace(cfg, eps=eps)
     if c.road is not None:
         out = dataclasses.replace(out, sleet=c.road)

@@ -77,10 +77,16 @@ def clip_crashed(seg: Segments) -> jax.Array:
 
 
 def believed_scores(
-    seg: Segments, policy: Params, belief: DrivingParams, cfg: TeacherConfig, crash: bool = True
+    seg: Segments,
+    policy: Params,
+    belief: DrivingParams,
+    cfg: TeacherConfig,
+    crash: bool = True,
+    whole_clip: bool = False,
 ) -> jax.Array:
     """S_i of each clip (module docstring): seg [K, L, ·] → [K]. ``crash=False`` leaves the crash term out:
-    the participant judges the decisions alone, however the road answered them."""
+    the participant judges the decisions alone, however the road answered them. ``whole_clip`` judges a
+    clip that ends early at the rate of the decisions it shows (:func:`whole_clip_scores`)."""
 
     def one(obs, act, next_obs, mask):
         o_hat, live, crashed = believed_steps(obs, act, next_obs, mask, belief)
@@ -88,12 +94,25 @@ def believed_scores(
         if cfg.relative:
             lp = lp - jnp.max(logits(policy, o_hat), -1)
         per_step = jnp.where(live, jnp.maximum(lp, cfg.log_t_floor), 0.0)
-        return discounted_sum(per_step, mask, cfg.gamma), crashed
+        return discounted_sum(per_step, mask, cfg.gamma), crashed, jnp.sum(live & (mask > 0))
 
-    score, believed_crash = jax.vmap(one)(seg.obs, seg.act, seg.next_obs, seg.mask)
+    score, believed_crash, scored = jax.vmap(one)(seg.obs, seg.act, seg.next_obs, seg.mask)
+    if whole_clip:
+        score = whole_clip_scores(score, scored, seg.mask.shape[-1])
     if not crash:
         return score
     return score + jnp.where(clip_crashed(seg) != believed_crash, cfg.log_t_floor, 0.0)
+
+
+def whole_clip_scores(score: jax.Array, scored: jax.Array, length: int) -> jax.Array:
+    """A clip's score over its whole length at the rate of the decisions it shows: ``S · L / n`` [K].
+
+    Every clip of the study is shown at one length (Fig. 33), and a decision of a categorical π_H
+    never scores above 0, so a sum over the n decisions a clip holds favours a clip that ends
+    early (it crashed) for having fewer decisions to judge. Scaled to the clip's length L, each
+    clip is judged by how expected its decisions are per decision — the form its rating takes
+    (§2.2.1's geometric mean) — and a clip that runs its whole length scores as before."""
+    return score * (length / jnp.maximum(scored, 1))
 
 
 def believed_per_step(

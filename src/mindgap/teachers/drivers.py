@@ -75,7 +75,7 @@ from ..envs.driving.world import decode
 from ..envs.interface import Env
 from ..models.categorical import categorical_log_prob
 from ..models.mlp import Params
-from .believed_rollout import believed_per_step, believed_scores
+from .believed_rollout import believed_per_step, believed_scores, whole_clip_scores
 from .expectation import ExpectationTeacher, segment_scores
 from .preference import TeacherConfig, labels_from_scores
 
@@ -219,7 +219,7 @@ def participant_reward(p: RewardH, obs: jax.Array, act: jax.Array, next_obs: jax
 @partial(
     jax.tree_util.register_dataclass,
     data_fields=["beliefs", "policies", "attentive"],
-    meta_fields=["env", "cfg", "rollout", "crash"],
+    meta_fields=["env", "cfg", "rollout", "crash", "whole_clip"],
 )
 @dataclasses.dataclass(frozen=True)
 class CrowdTeacher:
@@ -250,6 +250,10 @@ class CrowdTeacher:
     at its own states."""
     crash: bool = True
     """With ``rollout``: charge a crash the participant's rollout does not reproduce."""
+    whole_clip: bool = True
+    """Judge a clip that ends early (a crash) at the rate of the decisions it shows, over the clip's
+    whole length (:func:`~mindgap.teachers.believed_rollout.whole_clip_scores`); False: the plain sum
+    over its steps, which favours a clip for ending sooner."""
 
     @property
     def size(self) -> int:
@@ -260,8 +264,11 @@ class CrowdTeacher:
 
         def one(belief, policy):
             if self.rollout:
-                return believed_scores(seg, policy, belief, self.cfg, self.crash)
-            return segment_scores(seg, ExpectationTeacher(belief, policy, self.env), self.cfg)
+                return believed_scores(seg, policy, belief, self.cfg, self.crash, self.whole_clip)
+            score = segment_scores(seg, ExpectationTeacher(belief, policy, self.env), self.cfg)
+            if self.whole_clip:
+                score = whole_clip_scores(score, (seg.mask > 0).sum(-1), seg.mask.shape[-1])
+            return score
 
         return jax.vmap(one)(self.beliefs, self.policies)
 
