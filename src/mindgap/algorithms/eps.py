@@ -25,6 +25,10 @@ weighted λ/s_H, with s_H = ``nats_per_unit`` (7) the same in
 every world: the spread, in nats, that one unit of the standardised u_H stands for
 (:mod:`~mindgap.algorithms.eps_reward`, "Scale of H_π").
 
+With ``judged="decisions"`` (a person who judges the agent's decisions, not the world's answer)
+T_A is not fitted and H_T leaves the reward; with ``absorbing`` u_H learns absorbing states and an
+ended episode's λ-term goes on at their value (:mod:`~mindgap.algorithms.eps_config`).
+
 ``method="drlhp"`` is the DRLHP baseline of §4.4.1.1: the same preferences and ensemble, the
 agent optimising the standardised u_H alone (no r_A, no H_T; SAC's α tuned as usual).
 T_A is not retrained once the query budget is spent: the reward is then fixed, as in the
