@@ -172,18 +172,16 @@ def _driving(args) -> int:
 
     if args.episodes < 1:
         raise ValueError("--episodes must be at least 1")
-    control_flags = (
-        "coin", "only", "exact", "road", "lam", "survival_entropy", "offset", "absorbing", "seeds", "answers_by"
-    )  # fmt: skip
+    control_flags = ("coin", "only", "exact", "road", "lam", "survival_entropy", "offset", "absorbing", "seeds")
     if args.learner is not None:
         from ..experiments import driving_controls as dc
 
         if args.seeds is not None and args.seeds < 1:
             raise ValueError("--seeds must be at least 1")
-        c = dc.Control(args.learner, **{k: getattr(args, k) for k in control_flags})
+        c = dc.Control(args.learner, answers_by=args.answers_by, **{k: getattr(args, k) for k in control_flags})
         print(dc.report(dc.run_control(args.run, c)))
         return 0
-    for flag in control_flags[:-1]:
+    for flag in control_flags:
         if getattr(args, flag) not in (None, False):
             raise ValueError(f"--{flag.replace('_', '-')} goes with --learner")
     people = probes.load_participants(args.run, args.answers_by)
