@@ -86,7 +86,7 @@ def test_bad_envs_get_one_line_and_nothing_is_written(world, tmp_path, capsys, m
     sys.modules.pop("point_mass", None)
     bad = {
         "nowhere.py:make_world": "no such file",
-        f"{EXAMPLE}:make_planet": "has no function 'make_planet'",
+        f"{EXAMPLE}:make_planet": "has no function or class 'make_planet'",
         f"{EXAMPLE}:make_world,speed=2": "make_world() failed: TypeError",
         "gym:NoSuchEnv-v0": "gym:NoSuchEnv-v0",
     }

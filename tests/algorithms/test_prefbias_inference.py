@@ -376,8 +376,8 @@ def test_absorbing_steps_count_r_abs_of_the_terminal_state(key):
     cfg = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), **PLAIN)
     weights = RewardWeights(w, 0.05 * jax.random.normal(jax.random.fold_in(key, 7), (256,)))
     # b ended after its first step (a goal or a pit): its second step is absorbing
-    seg_a = AbsorbingSegments(*seg_a, jnp.zeros((1, 2), bool))
-    seg_b = AbsorbingSegments(*seg_b, jnp.array([[False, True]]))
+    seg_a = AbsorbingSegments(*seg_a[:4], jnp.zeros((1, 2), bool))
+    seg_b = AbsorbingSegments(*seg_b[:4], jnp.array([[False, True]]))
     s_t = np.asarray(seg_b.next_obs[0, 0], np.float64)
     r_abs = float(absorbing_value(weights, jnp.asarray(s_t)[None])[0])
     assert abs(r_abs) > 0.05  # a head that matters

@@ -233,7 +233,7 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
     import numpy as np
     from study_helpers import driving_rollouts
 
-    from mindgap.data.segments import Segments
+    from mindgap.data.segments import SHOWN, Segments
     from mindgap.envs.driving import make_world
     from mindgap.study.live import StudyTeacher
     from mindgap.study.store import Store
@@ -280,8 +280,7 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
         teacher = StudyTeacher(db, make_world(sleet=1.0), timeout=90, poll=0.1, progress=False)
         data = items["bias"]["data"]
         seg_a, seg_b = (
-            Segments(*(np.asarray([data[s][f]], bool if f == "mask" else np.float32) for f in Segments._fields))
-            for s in "ab"
+            Segments(*(np.asarray([data[s][f]], bool if f == "mask" else np.float32) for f in SHOWN)) for s in "ab"
         )
         run = threading.Thread(target=lambda: got.update(zip(("labels", "answered"), teacher(seg_a, seg_b))))
         run.start()

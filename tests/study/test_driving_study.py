@@ -15,7 +15,7 @@ from study_helpers import Participant, driving_rollouts, hidden, study_file
 
 from mindgap.cli import main
 from mindgap.data.rollouts_file import RolloutsFileError, read_rollouts
-from mindgap.data.segments import Segments
+from mindgap.data.segments import SHOWN, Segments
 from mindgap.envs.driving import FEATURES, importance_weights, make_world
 from mindgap.envs.driving.sleet import factor_mean_std
 from mindgap.study import driving as sd
@@ -148,7 +148,7 @@ def test_a_sleety_road_looks_sleety_and_a_dry_one_does_not(tmp_path):
 
 def _segments(item_data: dict) -> tuple[Segments, Segments]:
     return tuple(
-        Segments(*(np.asarray([item_data[s][f]], bool if f == "mask" else np.float32) for f in Segments._fields))
+        Segments(*(np.asarray([item_data[s][f]], bool if f == "mask" else np.float32) for f in SHOWN))
         for s in ("a", "b")
     )
 

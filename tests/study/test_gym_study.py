@@ -12,7 +12,7 @@ from fastapi.testclient import TestClient
 from PIL import Image
 from study_helpers import Participant, study_file
 
-from mindgap.data.segments import Segments
+from mindgap.data.segments import SHOWN, Segments
 from mindgap.envs.resolve import resolve_env
 from mindgap.plotting.animation import observation_frames
 from mindgap.study.app import create_app
@@ -89,7 +89,7 @@ def test_a_live_hopper_pair_is_answered_through_the_app_with_animations(tmp_path
     world = resolve_env(HOPPER)
     teacher = StudyTeacher(store.path, world, timeout=60, poll=0.02, progress=False)
     seg = _segments(world, k=2, length=4)
-    a, b = (Segments(*(np.asarray(seg[f][i : i + 1]) for f in Segments._fields)) for i in (0, 1))
+    a, b = (Segments(*(np.asarray(seg[f][i : i + 1]) for f in SHOWN)) for i in (0, 1))
     result = {}
     run = threading.Thread(target=lambda: result.update(zip(("labels", "answered"), teacher(a, b))))
     run.start()  # the run posts the pair and waits for the answer

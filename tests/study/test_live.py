@@ -10,7 +10,7 @@ from fastapi.testclient import TestClient
 from study_helpers import Participant, study_file
 
 from mindgap.algorithms.pbrl import FAST_SCHEDULE, method_config, train
-from mindgap.data.segments import Segments
+from mindgap.data.segments import SHOWN, Segments
 from mindgap.envs.terrain import load_world, world_from_dict
 from mindgap.models.reward_ensemble import RewardConfig
 from mindgap.study.app import create_app
@@ -91,7 +91,7 @@ class People:
 
 def _pairs(params, k, seed=0):
     s = random_segments(jax.random.key(seed), params, 2 * k, 8)
-    return (Segments(*(s[f][:k] for f in Segments._fields)), Segments(*(s[f][k:] for f in Segments._fields)))
+    return (Segments(*(s[f][:k] for f in SHOWN)), Segments(*(s[f][k:] for f in SHOWN)))
 
 
 def test_the_study_teacher_returns_what_people_answered(tmp_path):
@@ -102,8 +102,8 @@ def test_the_study_teacher_returns_what_people_answered(tmp_path):
     seg_a, seg_b = _pairs(world.params, 5)
     with People(client, store, world.params):
         labels, answered = teacher(seg_a, seg_b)
-    a = {k: np.asarray(getattr(seg_a, k)) for k in Segments._fields}
-    b = {k: np.asarray(getattr(seg_b, k)) for k in Segments._fields}
+    a = {k: np.asarray(getattr(seg_a, k)) for k in SHOWN}
+    b = {k: np.asarray(getattr(seg_b, k)) for k in SHOWN}
     d = true_returns(world.params, a) - true_returns(world.params, b)
     assert answered.all()
     assert np.array_equal(labels, np.where(d == 0, 0.5, (d > 0).astype(np.float32)))

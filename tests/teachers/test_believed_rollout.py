@@ -49,7 +49,7 @@ def test_decisions_the_grip_does_not_touch_play_out_as_they_happened():
     """A lane change never brakes: the believed rollout of any belief is the clip itself."""
     seg = _clips(LANE_LEFT, WORLD.params, count=4)
     for belief in (DRY, WORLD.params):
-        o_hat, live, crashed = jax.vmap(lambda o, a, n, m: br.believed_steps(o, a, n, m, belief))(*seg)
+        o_hat, live, crashed = jax.vmap(lambda o, a, n, m: br.believed_steps(o, a, n, m, belief))(*seg[:4])
         assert np.allclose(o_hat, seg.obs, atol=1e-4) and np.array_equal(live, seg.mask > 0)
         assert not bool(crashed.any())
 
@@ -62,7 +62,7 @@ def test_a_dry_road_believer_sees_braking_on_sleet_work_and_is_surprised_by_its_
     seg = _clips(SLOWER, WORLD.params)
     crashed = np.asarray(br.clip_crashed(seg))
     assert crashed.mean() > 0.5
-    o_hat, live, believed_crash = jax.vmap(lambda o, a, n, m: br.believed_steps(o, a, n, m, DRY))(*seg)
+    o_hat, live, believed_crash = jax.vmap(lambda o, a, n, m: br.believed_steps(o, a, n, m, DRY))(*seg[:4])
     assert not bool(believed_crash.any())
     braked = (seg.obs[..., 7] > 0.5) & (seg.mask > 0)
     assert bool(jnp.all(jnp.where(braked, o_hat[..., 2] <= seg.obs[..., 2] + 1e-6, True)))  # slower as believed

@@ -270,7 +270,9 @@ def host_answers(teacher, seg_a, seg_b, queries, per_round: int, budget: int):
     ask = int(min(per_round, budget - int(queries.min())))
 
     def flat(seg):
-        return type(seg)(*(np.asarray(x)[:, :ask].reshape(seeds * ask, *x.shape[2:]) for x in seg))
+        return type(seg)(
+            *(None if x is None else np.asarray(x)[:, :ask].reshape(seeds * ask, *x.shape[2:]) for x in seg)
+        )
 
     got, ok = teacher(flat(seg_a), flat(seg_b))
     labels = np.zeros((seeds, per_round), np.float32)
@@ -351,13 +353,17 @@ def preference_teacher(world, cfg, seeds: int, teacher, belief: str | None, *, w
         raise ValueError(f"teacher must be one of {', '.join(TEACHERS)} or a host teacher, got {teacher!r}")
     if not host and cfg.method != "sac":
         check_env(world.env, density=teacher != "true", who=f"{who}'s simulated person", discrete_actions=True)
-        if world.env.reward is None:
-            raise ValueError(f"{who}'s simulated person needs the env's reward; this env has none")
+        if world.env.reward is None and teacher != "true":
+            raise ValueError(
+                f"{who}'s simulated person needs the env's reward function; this env has none (--teacher true sums the rewards it returns)"
+            )
     meta = run_record(world, seeds, teacher=teacher.name if host else teacher, belief=belief)
     meta["config"] = cfg.as_dict()
     if host:
         return teacher, meta
-    belief_params = {"biased": lambda: world.belief(belief), "unbiased": lambda: world.params}.get(teacher, lambda: None)()
+    belief_params = {"biased": lambda: world.belief(belief), "unbiased": lambda: world.params}.get(
+        teacher, lambda: None
+    )()
     tcfg = dataclasses.replace(cfg.teacher, use_belief=teacher != "true")
     return PreferenceTeacher(world.params, belief_params, world.env, tcfg), meta
 

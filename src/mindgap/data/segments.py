@@ -29,15 +29,24 @@ from .replay import Replay
 
 
 class Segments(NamedTuple):
-    """obs, next_obs [K, L, d]; act [K, L, a]; mask [K, L] (True for real steps).
+    """obs, next_obs [K, L, d]; act [K, L, a]; mask [K, L] (True for real steps); env_reward [K, L] or None.
 
     A plain ``Segments`` has no absorbing steps; :class:`AbsorbingSegments` adds them.
+    ``env_reward`` holds the rewards the env returned, where the segments were cut from a
+    buffer (:func:`sample_segments`): the ordinary simulated person of an env without an exact
+    reward function sums them (:func:`~mindgap.teachers.preference.segment_scores`). Stored
+    answers and segments built by hand have none.
     """
 
     obs: jax.Array
     act: jax.Array
     next_obs: jax.Array
     mask: jax.Array
+    env_reward: jax.Array | None = None
+
+
+SHOWN = ("obs", "act", "next_obs", "mask")
+"""The fields of a segment as it is shown, stored and sent to people: without the env's rewards."""
 
 
 class AbsorbingSegments(NamedTuple):
@@ -53,6 +62,7 @@ class AbsorbingSegments(NamedTuple):
     next_obs: jax.Array
     mask: jax.Array
     absorbed: jax.Array
+    env_reward: jax.Array | None = None
 
 
 def absorbed_steps(seg) -> jax.Array:
@@ -72,7 +82,8 @@ def terminal_obs(seg) -> jax.Array:
 
 
 def with_absorbing(seg, absorbing: bool):
-    """``seg`` as :class:`AbsorbingSegments` (no absorbing steps added) or as plain :class:`Segments` (any dropped)."""
+    """``seg`` as :class:`AbsorbingSegments` (no absorbing steps added) or as plain :class:`Segments` (any dropped),
+    in a store's form: without the env's rewards."""
     if absorbing:
         return AbsorbingSegments(seg.obs, seg.act, seg.next_obs, seg.mask, absorbed_steps(seg))
     return Segments(seg.obs, seg.act, seg.next_obs, seg.mask)
@@ -101,10 +112,10 @@ def sample_segments(
     ended_before = jnp.cumsum(buf.terminal[idx], axis=1) - buf.terminal[idx]  # a terminal earlier in the segment
     mask = jnp.cumprod(contiguous & (ended_before == 0), axis=1).astype(bool)
     if not absorbing:
-        return Segments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask)
+        return Segments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask, buf.env_reward[idx])
     # the last real step was terminal: everything after it is absorbing
     ended = jnp.cumsum(mask & buf.terminal[idx], axis=1) - (mask & buf.terminal[idx]) > 0
-    return AbsorbingSegments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask, ended & ~mask)
+    return AbsorbingSegments(buf.obs[idx], buf.act[idx], buf.next_obs[idx], mask, ended & ~mask, buf.env_reward[idx])
 
 
 def _draw_among(eligible: jax.Array, key: jax.Array, count: int) -> jax.Array:

@@ -22,6 +22,9 @@ without one (:func:`refuse_without_dynamics`).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import re
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
@@ -102,6 +105,9 @@ class GymWorld(World):
     kwargs: tuple = ()
     act_low: tuple = ()
     act_high: tuple = ()
+    entry: str = ""
+    """For a user's env (``--env path.py:factory``): ``path.py:factory`` with the path made absolute,
+    which :meth:`make` registers again in a process that has not (a sweep's worker); else empty."""
 
     def make(self, seed: int | None = None, render_mode: str | None = None):
         """A fresh gymnasium env (time-limited at ``horizon``, drawing itself with ``render_mode``), reset with
@@ -109,6 +115,8 @@ class GymWorld(World):
         import gymnasium
 
         register_envs()
+        if self.entry and self.env_id not in gymnasium.registry:
+            register_user_env(self.entry)
         extra = {} if render_mode is None else {"render_mode": render_mode}
         env = gymnasium.make(self.env_id, max_episode_steps=self.horizon, **dict(self.kwargs), **extra)
         obs, _ = env.reset(seed=seed)
@@ -128,30 +136,33 @@ class GymWorld(World):
 
 def make_gym_world(env_id: str, **kwargs) -> GymWorld:
     """The :class:`GymWorld` of gymnasium's ``env_id`` made with ``kwargs``; one-line EnvError otherwise."""
+    return _gym_world(env_id, kwargs, f"gym:{env_id}")
+
+
+def _gym_world(env_id: str, kwargs: dict, who: str) -> GymWorld:
+    """:func:`make_gym_world`, its errors naming the env as ``who`` (``gym:ID`` or a user's ``path.py:factory``)."""
     import gymnasium
 
     register_envs()
     try:
         probe = gymnasium.make(env_id, **kwargs)
     except gymnasium.error.Error as e:
-        raise EnvError(f"gym:{env_id}: {type(e).__name__}: {e}".splitlines()[0]) from None
+        raise EnvError(f"{who}: {type(e).__name__}: {e}".splitlines()[0]) from None
     except Exception as e:
-        raise EnvError(f"gym:{env_id}: cannot make it: {type(e).__name__}: {e}".splitlines()[0]) from None
+        raise EnvError(f"{who}: cannot make it: {type(e).__name__}: {e}".splitlines()[0]) from None
     try:
         obs_space, act_space = probe.observation_space, probe.action_space
         horizon = probe.spec.max_episode_steps if probe.spec is not None else None
     finally:
         probe.close()
     if not isinstance(act_space, gymnasium.spaces.Box) or len(act_space.shape) != 1:
-        raise EnvError(f"gym:{env_id}: mindgap's learners need a flat Box action space, this env has {act_space}")
+        raise EnvError(f"{who}: mindgap's learners need a flat Box action space, this env has {act_space}")
     if not (np.all(np.isfinite(act_space.low)) and np.all(np.isfinite(act_space.high))):
-        raise EnvError(f"gym:{env_id}: its action bounds are not finite, so actions in [-1, 1] cannot be scaled")
+        raise EnvError(f"{who}: its action bounds are not finite, so actions in [-1, 1] cannot be scaled")
     if not isinstance(obs_space, gymnasium.spaces.Box):
-        raise EnvError(f"gym:{env_id}: mindgap's learners need a Box observation space, this env has {obs_space}")
+        raise EnvError(f"{who}: mindgap's learners need a Box observation space, this env has {obs_space}")
     if not horizon:
-        raise EnvError(
-            f"gym:{env_id}: it declares no max_episode_steps; pass one, e.g. gym:{env_id},max_episode_steps=500"
-        )
+        raise EnvError(f"{who}: it declares no max_episode_steps; pass one, e.g. {who},max_episode_steps=500")
     low, high = (tuple(float(x) for x in b) for b in (act_space.low, act_space.high))
     params = {"low": jnp.asarray(low, jnp.float32), "high": jnp.asarray(high, jnp.float32)}
     reward = None
@@ -194,6 +205,72 @@ def gym_world_from_spec(spec: str) -> GymWorld:
         if not isinstance(steps, int) or steps < 1:
             raise EnvError(f"{spec}: max_episode_steps must be a positive integer")
         world = dataclasses.replace(world, horizon=steps, name=f"{world.name},max_episode_steps={steps}")
+    return world
+
+
+def user_env_id(entry: str) -> str:
+    """The gymnasium id under which a user's ``path.py:factory`` (or ``module:factory``) is registered:
+    ``mindgap-user/STEM.FACTORY_HASH-v0``, the hash telling apart two files of one name."""
+    target, _, factory = entry.rpartition(":")
+    stem = Path(target).stem if target.endswith(".py") else target.rsplit(".", 1)[-1]
+    digest = hashlib.sha1(entry.encode()).hexdigest()[:8]
+    safe = (re.sub(r"[^A-Za-z0-9_]", "_", x) for x in (stem, factory))
+    return f"mindgap-user/{'.'.join(safe)}_{digest}-v0"
+
+
+def register_user_env(entry: str, factory=None, max_episode_steps: int | None = None) -> str:
+    """Register a user's env factory (``entry`` = ``path.py:factory``; ``factory`` the callable, imported
+    from ``entry`` when None) with gymnasium once per process; returns its id (:func:`user_env_id`)."""
+    import gymnasium
+
+    env_id = user_env_id(entry)
+    if env_id not in gymnasium.registry:
+        if factory is None:
+            from .resolve import import_factory
+
+            factory = import_factory(entry)
+        gymnasium.register(env_id, entry_point=factory, max_episode_steps=max_episode_steps)
+    return env_id
+
+
+def _declared_steps(env) -> int | None:
+    """The episode limit a made env carries: its spec's ``max_episode_steps`` or a TimeLimit wrapper's."""
+    spec = getattr(env, "spec", None)
+    if spec is not None and spec.max_episode_steps:
+        return int(spec.max_episode_steps)
+    while env is not None:
+        limit = getattr(env, "_max_episode_steps", None)
+        if limit:
+            return int(limit)
+        env = getattr(env, "env", None)
+    return None
+
+
+def user_gym_world(entry: str, who: str, factory, kwargs: dict, made, max_episode_steps: int | None) -> GymWorld:
+    """The :class:`GymWorld` of a user's factory (or class) whose call ``made`` a ``gymnasium.Env``.
+
+    It runs through the host loop as a ``gym:ID`` world does, under the name ``who,key=value…``.
+    The horizon is ``max_episode_steps`` if given, else the limit the made env carries (a
+    TimeLimit or its spec). It has no exact reward: the ordinary simulated person
+    (``--teacher true``) sums the rewards the env returned
+    (:func:`~mindgap.teachers.preference.segment_scores`), as B-Pref's scripted teacher does.
+    """
+    declared = _declared_steps(made)
+    try:
+        made.close()
+    except Exception:
+        pass
+    if max_episode_steps is not None and (not isinstance(max_episode_steps, int) or max_episode_steps < 1):
+        raise EnvError(f"{who}: max_episode_steps must be a positive integer")
+    if not (declared or max_episode_steps):
+        raise EnvError(f"{who}: it declares no max_episode_steps; pass one, e.g. {who},max_episode_steps=500")
+    env_id = register_user_env(entry, factory, declared or max_episode_steps)
+    world = _gym_world(env_id, kwargs, who)
+    name = ",".join([who, *(f"{k}={v}" for k, v in sorted(kwargs.items()))])
+    world = dataclasses.replace(world, name=name, source=name, entry=entry)
+    if max_episode_steps is not None:
+        name = f"{name},max_episode_steps={max_episode_steps}"
+        world = dataclasses.replace(world, horizon=max_episode_steps, name=name, source=name)
     return world
 
 

@@ -4,9 +4,11 @@
 
 * a named terrain world (``nav1``, ``d3``, …) or a world file (``my-world.toml``);
 * ``path/to/file.py:factory`` or ``package.module:factory``: a user's own world — ``factory``
-  is called with the ``key=value`` arguments after a comma
-  (``examples/point_mass.py:make_world,drift=0.1``) and must return an
-  :class:`~mindgap.envs.interface.World`;
+  (a function or a class) is called with the ``key=value`` arguments after a comma
+  (``examples/point_mass.py:make_world,drift=0.1``) and returns either an
+  :class:`~mindgap.envs.interface.World` or a ``gymnasium.Env``, which is registered with
+  gymnasium and stepped on the host as ``gym:ID`` is (``max_episode_steps=N`` sets its
+  horizon where the env carries none; :func:`~mindgap.envs.gym_world.user_gym_world`);
 * ``gym:ID`` (``gym:Pendulum-v1,g=9.81``): a gymnasium environment, stepped on the host
   (:mod:`~mindgap.envs.gym_world`; ``max_episode_steps=N`` sets its horizon);
 * ``mjx:hopper`` or ``mjx:cheetah`` (``mjx:hopper,share=0.1,solver=gym``): gymnasium's hopper
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import inspect
 import sys
 from pathlib import Path
 
@@ -75,6 +78,38 @@ def _import(target: str):
         raise EnvError(f"cannot import {target}: {type(e).__name__}: {e}") from None
 
 
+def _entry(head: str) -> str:
+    """``path.py:factory`` with the path made absolute (any process can import it again), or ``module:factory``."""
+    target, _, factory = head.rpartition(":")
+    return f"{Path(target).resolve()}:{factory}" if target.endswith(".py") else head
+
+
+def import_factory(entry: str, who: str | None = None):
+    """The callable (a function or a class) that ``path.py:factory`` or ``module:factory`` names."""
+    target, _, factory = entry.rpartition(":")
+    fn = getattr(_import(target), factory, None)
+    if not callable(fn):
+        raise EnvError(f"{(who or entry).rpartition(':')[0]} has no function or class {factory!r}")
+    return fn
+
+
+def _takes(fn, name: str) -> bool:
+    """Whether ``fn`` accepts the keyword ``name`` (True where its signature cannot be read)."""
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        return True
+    return any(p.name == name or p.kind is inspect.Parameter.VAR_KEYWORD for p in params)
+
+
+def _is_gym_env(obj) -> bool:
+    try:
+        import gymnasium
+    except ImportError:
+        return False
+    return isinstance(obj, gymnasium.Env)
+
+
 def resolve_env(spec: str):
     """The world ``spec`` names (see the module docstring), checked."""
     spec = spec.strip()
@@ -90,17 +125,24 @@ def resolve_env(spec: str):
         return world
     head, _, kwargs = spec.partition(",")
     if ":" in head:
-        target, _, factory = head.rpartition(":")
-        module = _import(target)
-        fn = getattr(module, factory, None)
-        if not callable(fn):
-            raise EnvError(f"{target} has no function {factory!r}")
+        entry = _entry(head)
+        fn = import_factory(entry, head)
+        kw = parse_kwargs(kwargs)
+        steps = (
+            kw.pop("max_episode_steps") if "max_episode_steps" in kw and not _takes(fn, "max_episode_steps") else None
+        )
         try:
-            world = fn(**parse_kwargs(kwargs))
+            world = fn(**kw)
         except EnvError:
             raise
         except Exception as e:
             raise EnvError(f"{head}() failed: {type(e).__name__}: {e}") from None
+        if _is_gym_env(world):
+            from .gym_world import user_gym_world
+
+            return user_gym_world(entry, head, fn, kw, world, steps)
+        if steps is not None:
+            raise EnvError(f"{head}: max_episode_steps is for a factory that returns a gymnasium env")
         check_world(world, head)
         return world
     if kwargs:
@@ -116,7 +158,9 @@ def check_world(world, name: str = "the world") -> None:
     if isinstance(world, TerrainWorld):
         return
     if not isinstance(world, World):
-        raise EnvError(f"{name} returned {type(world).__name__}, not a mindgap World (mindgap.envs.interface.World)")
+        raise EnvError(
+            f"{name} returned {type(world).__name__}, not a mindgap World (mindgap.envs.interface.World) or a gymnasium.Env"
+        )
     env = world.env
     check_env(env, continuous_actions=False, who=name)
     obs_dim = env.observation_space.dim

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.segments import Segments
+from ..data.segments import SHOWN, Segments
 from .items import segment_dict
 from .prefs_file import ANSWERS
 from .store import Store
@@ -68,8 +68,8 @@ class StudyTeacher:
         return self.name
 
     def __call__(self, seg_a: Segments, seg_b: Segments) -> tuple[np.ndarray, np.ndarray]:
-        a = {k: np.asarray(getattr(seg_a, k)) for k in Segments._fields}
-        b = {k: np.asarray(getattr(seg_b, k)) for k in Segments._fields}
+        a = {k: np.asarray(getattr(seg_a, k)) for k in SHOWN}
+        b = {k: np.asarray(getattr(seg_b, k)) for k in SHOWN}
         k = len(a["mask"])
         batch = self.store.post_live_batch(
             self.name, [{"a": segment_dict(a, i), "b": segment_dict(b, i)} for i in range(k)]

@@ -61,9 +61,18 @@ def segment_scores(seg: Segments, env: Env, world_params, belief_params, cfg: Te
     """The person's score of each segment. seg [K, L, ·] → [K]; absorbing steps score 0.
 
     r_H is ``env.reward`` under ``world_params``; log T_H is ``env.log_prob`` under ``belief_params``.
+    An env without a reward function (a user's gymnasium env) is scored by the rewards it
+    returned, ``seg.env_reward``, as B-Pref's scripted teacher scores segments; only the
+    ordinary teacher (no belief) can be.
     Jitted: called outside a jitted program (a world check, a host teacher), op by op it compiled
     each of the dynamics' branches again on every call.
     """
+    if env.reward is None:
+        if seg.env_reward is None or (belief_params is not None and cfg.use_belief):
+            raise ValueError(
+                "a person without the env's reward function scores only segments cut from a buffer, by r alone"
+            )
+        return discounted_sum(seg.env_reward, seg.mask, cfg.gamma)
 
     def step_score(o, a, o2):
         r = env.reward(o, a, o2, world_params)
