@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 from mindgap.cli import main
+from mindgap.experiments.claim_sources import SOURCES
 from mindgap.experiments.report_catalog import CATALOG, claims
 
 
@@ -29,7 +30,8 @@ def check_report(run_dir: Path, out: Path, name: str, *, fast: bool = True) -> s
     summary = json.loads((run_dir / "summary.json").read_text())
     for c in claims(name, summary):  # each mark is the experiment's own verdict on its results
         mark = {True: "✓", False: "✗", None: "–"}[c["held"]]
-        assert f"| {mark} | {c['text']} | {c['measured']} |" in md
+        assert c["id"] in SOURCES, c  # every claim an experiment makes says where it comes from
+        assert f"| {mark} | {c['text']} | {c['where']}: {c['says']} | {c['measured']} |" in md
     for img in (out / "report.md").read_text().split("](")[1:]:
         target = img.split(")")[0]
         if not target.startswith(("http", "#")):

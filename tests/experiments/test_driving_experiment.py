@@ -110,14 +110,11 @@ def test_driving_fast_table5_behaviours_figures_and_resume(stand_ins, tmp_path, 
     assert people["valid"] == 4 and len(people["engineered_weights"]) == 4
     assert sum(people["engineered_weights"]) == pytest.approx(1.0, abs=1e-5)
     summary = json.loads((out / "summary.json").read_text())
-    texts = [c["text"] for c in summary["claims"]]
-    assert "driving: EPS is rated highest by the new participants" in texts
-    assert "driving: SAC changes lane first (earliest first lane change, in most episodes)" in texts
-    assert {c["text"]: c["held"] for c in summary["claims"]}[
-        "driving: EPS brakes first, then changes lane (in most episodes)"
-    ]
+    claims = {c["id"]: c for c in summary["claims"]}
+    assert {"driving/eps-rated-highest", "driving/sac-steers-first"} <= set(claims)
+    assert claims["driving/eps-brakes-then-steers"]["held"]
     # the control: DRLHP on coin-flip answers (the stand-in brakes whatever it is told, so the claim fails)
-    control = next(c for c in summary["claims"] if c["text"].startswith("driving: DRLHP follows the answers"))
+    control = claims["driving/control"]
     assert control["held"] is False and "coin flips 1 of 1" in control["measured"]
     assert by["drlhp-coin"]["seeds_braking_first"] == "1" and "DRLHP, coin flips" in (out / "table.md").read_text()
     for name in ("frames_eps.png", "episode_sac.gif", "participants.csv", "table.md", "curves.csv"):
@@ -259,7 +256,7 @@ def test_drlhp_must_brake_in_lane_for_its_claim(braked_first, changed, held):
     row = dict(rating_mean=5.0, return_mean=10.0, first_change_mean=0.0, braked_first_mean=0.0, changed_mean=1.0)
     by = {m: dict(row, min_gap_mean=40.0, collided_mean=0.0) for m in ("eps", "sac")}
     by["drlhp"] = dict(row, min_gap_mean=20.0, collided_mean=0.0, braked_first_mean=braked_first, changed_mean=changed)
-    claim = next(c for c in _claims(by) if c["text"].startswith("driving: DRLHP brakes in lane"))
+    claim = next(c for c in _claims(by) if c["id"] == "driving/drlhp-brakes-in-lane")
     assert claim["held"] is held
 
 

@@ -144,10 +144,10 @@ def test_eps_fast_tables_figures_shaping_and_resume(stand_ins, tmp_path, capsys)
     assert rec["return"] == pytest.approx([s["stochastic_return"] for s in want], rel=1e-5)
 
     summary = json.loads((out / "summary.json").read_text())
-    claims = {c["text"]: c for c in summary["claims"]}
-    assert claims["d1: EPS takes the required route (detour) in most seeds"]["held"]
-    assert "d3: Policy Shaping does much worse than EPS (≥ 50 lower return)" in claims
-    assert "d1: EPS (unbiased person)'s return is within 5% of SAC's" in claims
+    claims = {(c["text"].split(":")[0], c["id"]): c for c in summary["claims"]}
+    assert claims["d1", "eps/route"]["held"] and "(detour)" in claims["d1", "eps/route"]["text"]
+    assert ("d3", "eps/shaping-d3") in claims and ("d1", "eps/shaping-d3") not in claims  # d3's ice only
+    assert claims["d1", "eps/unbiased-near-sac"]["text"].endswith("(within 5% of SAC's return)")
     assert [p["world"] for p in summary["person"]] == ["d1", "d3"]
     for name in ("trajectories.png", "unbiased.png", "surrogate_d1.png", "curves_d3.png", "table.md", "person.csv"):
         assert (out / name).stat().st_size > 0, name
@@ -183,7 +183,7 @@ def test_eps_fast_on_a_users_world(stand_ins, tmp_path, capsys):
     assert person_rec["plan_return"] is None and np.isfinite(person_rec["obey_return"])
     assert [p["world"] for p in rows(out / "person.csv")] == [spec]
     assert "| point-mass |" in capsys.readouterr().out
-    assert not any("route" in c["text"] for c in json.loads((out / "summary.json").read_text())["claims"])
+    assert not any(c["id"] == "eps/route" for c in json.loads((out / "summary.json").read_text())["claims"])
     for name in ("trajectories.png", "unbiased.png", "curves_point-mass.png", "table.md"):
         assert (out / name).stat().st_size > 0, name
 
@@ -199,11 +199,9 @@ def test_lambda_fast_routes_and_trend(stand_ins, tmp_path, capsys):
     check_report(out, tmp_path / "report", "lambda")
     assert [float(r["greedy_return_mean"]) for r in results] == pytest.approx([90.0, 75.0, 60.0])
     assert all(float(r["required_route"]) == 1.0 for r in results)  # the sandy road
-    claims = [c["text"] for c in json.loads((out / "summary.json").read_text())["claims"]]
-    assert claims == [
-        "d4: the explicability rises with λ within seed noise",
-        "d4: the return falls with λ within seed noise",
-    ]
+    claims = json.loads((out / "summary.json").read_text())["claims"]
+    assert [c["id"] for c in claims] == ["lambda/explicability-rises", "lambda/return-falls"]
+    assert all(c["text"].startswith("d4: ") for c in claims)
     assert "| d4 | 1.5 |" in printed and "held still" in printed
     for name in ("routes.png", "lambda.png", "table.md", "curves.csv"):
         assert (out / name).stat().st_size > 0, name
@@ -242,18 +240,19 @@ def test_eps_runs_a_coin_flip_control_and_states_its_claim():
     jobs = {j.key: j for j in eps_table.jobs(eps_table.preset("full"))}
     coin, eps = jobs["d3/eps-lam2-coin"], jobs["d3/eps-lam2"]
     assert coin.cfg.teacher.beta == 0.0 and dataclasses.replace(coin.cfg, teacher=eps.cfg.teacher) == eps.cfg
-    assert coin.tags["person"] == "coin" and not any("coin" in k for k in map(str, eps_table.jobs(eps_table.preset("fast"))))
+    assert coin.tags["person"] == "coin" and not any(
+        "coin" in k for k in map(str, eps_table.jobs(eps_table.preset("fast")))
+    )
 
     def row(expl, std=2.0):
         return {"explicability_mean": expl, "explicability_std": std, "seeds": 5, "label": "x", "required_route": 1.0}
 
     def coin_claims(eps, coin):
         claims = eps_table._claims(load_world("d3"), {"eps": row(eps), "eps-coin": row(coin)})
-        return {c["text"]: c["held"] for c in claims if "coin" in c["text"]}
+        return {c["id"]: c["held"] for c in claims if "coin" in c["id"]}
 
-    text = "d3: EPS learns from the answers: more explicable than on coin-flip answers by ≥ 2 standard errors"
-    assert coin_claims(-10.0, -30.0) == {text: True}
-    assert coin_claims(-10.0, -12.0) == {text: False}  # within two standard errors (2.5)
+    assert coin_claims(-10.0, -30.0) == {"eps/coin-control": True}
+    assert coin_claims(-10.0, -12.0) == {"eps/coin-control": False}  # within two standard errors (2.5)
 
 
 def test_a_seed_held_still_short_of_the_goal_is_counted():

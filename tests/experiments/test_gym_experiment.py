@@ -128,12 +128,13 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
     assert "better_route" not in results["sac"]  # no map, no routes
     assert len(rows(out / "curves.csv")) == 4 * 3  # learners × evaluations (1 seed)
     summary = json.loads((out / "summary.json").read_text())
-    claims = {c["text"]: c["held"] for c in summary["claims"]}
-    assert claims == {
-        "lunar: neither PbRL method matches SAC (each below it by more than 2 standard errors)": False,  # one seed
+    claims = {c["id"]: c["held"] for c in summary["claims"]}
+    assert claims == {"gym/lunar-below-sac": False, "gym/sac-level": True}  # one seed: no standard error
+    level = next(c for c in summary["claims"] if c["id"] == "gym/sac-level")
+    assert level["text"] == (
         "lunar: SAC on gym:LunarLander-v3,continuous=True reaches 200 (the 'solved' score of the Gym "
-        "documentation (dissertation §3.4.2.2))": True,
-    }
+        "documentation (dissertation §3.4.2.2))"
+    )
     # the conditions are measured; the lander's reward shapes by the next state and its episodes end early
     conds = summary["conditions"]["lunar"]
     assert [c["met"] for c in conds] == [True, False, False, None, True]
@@ -173,7 +174,10 @@ def test_the_claims_on_hand_made_rows():
     for name in ("hopper", "cheetah", "cheetah-mjx"):
         rows_ = [row("prefbias", 900, queries=200), row("prefbias", 1500), row("pebble", 300), row("sac", 3000)]
         (c,) = pg.domain_claims(name, rows_)
-        assert c["held"] and c["text"] == f"{name}: prefbias 800 above pebble 800 (by more than 2 standard errors)"
+        assert c["held"] and c["id"] == f"gym/{name.removesuffix('-mjx')}-above-pebble"
+        assert c["text"].startswith(f"{name}: PrefBias ") and c["text"].endswith(
+            ": prefbias 800 above pebble 800 (by more than 2 standard errors)"
+        )
         (c,) = pg.domain_claims(name, [row("prefbias", 310, std=50), row("pebble", 300, std=50), row("sac", 3000)])
         assert not c["held"]  # above, but within two standard errors
     level = {**row("sac-level", 2000.0), "steps": 1_000_000}

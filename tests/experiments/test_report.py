@@ -16,23 +16,28 @@ import pytest
 from mindgap.cli import main
 from mindgap.experiments import registry
 from mindgap.experiments._runfolder import RunFolder, same_config, to_jsonable
-from mindgap.experiments.report import claims_markdown, find_runs, table_blocks, tally_sentence
+from mindgap.experiments.claim_sources import PROJECT, SOURCES
+from mindgap.experiments.report import claims_markdown, find_runs, table_blocks, tally, tally_sentence
 from mindgap.experiments.report_catalog import CATALOG
 
+OURS, CONTROL = "eps/highest-explicability", "eps/coin-control"
+"""A claim of the dissertation's and a check of the project's own, for the hand-written summaries."""
 
-def _claim(text, held, measured):
-    return {"text": text, "held": held, "measured": measured}
+
+def _claim(cid, text, held, measured):
+    return {"id": cid, "text": text, "held": held, "measured": measured}
 
 
 def _summary(name: str) -> dict:
     if name == "table1":
         stats = {
-            f"tied|reversed|{m}": {
+            f"{param}|reversed|{m}": {
                 "d_R": [d, 0.1],
                 "d_Theta": [d / 10, 0.0],
                 "d_pi": [d / 100, 0.0],
                 "corr_R": [c, 0.0],
             }
+            for param in ("tied", "per-sa")
             for m, d, c in (
                 ("gerel", 2.0, 0.9),
                 ("serd", 3.0, 0.5),
@@ -40,7 +45,11 @@ def _summary(name: str) -> dict:
                 ("maxent-irl", 8.0, -0.7),
             )
         }
-        checks = {"tied|reversed": {"gerel_lowest_d_R": True, "tied_d_Theta<=0.10": False}}
+        # the dissertation's per-(s, a) belief makes claims (1 held, 1 not); the tied one is the project's (1, 1)
+        checks = {
+            "tied|reversed": {"gerel_lowest_d_R": True, "tied_d_Theta<=0.10": False},
+            "per-sa|reversed": {"gerel_lowest_d_R": True, "gerel_lowest_d_pi": False},
+        }
         return {
             "stats": stats,
             "checks": checks,
@@ -48,8 +57,20 @@ def _summary(name: str) -> dict:
             "table_md": "\nBelief parameterisation: tied\n\n| a |\n|---|\n| 1 |\n",
         }
     if name == "coffee":
-        learned = {"GeReL": {"humanoid": {"spill": [0.6, 0.1]}, "mobile": {"spill": [0.2, 0.1]}}}
-        orderings = {"GeReL": {"spill_humanoid_gt_mobile": True, "spill_order_matches_truth": None}}
+        spill = {"humanoid": {"spill": [0.6, 0.1]}, "mobile": {"spill": [0.2, 0.1]}}
+        learned = {
+            "GeReL (per-sa)": spill,
+            "GeReL (factored)": spill,
+            "GeReL⁻": {"humanoid": {"wet_penalty": [5.0, 1.0]}, "mobile": {"wet_penalty": [3.0, 1.0]}},
+        }
+        # the dissertation's: per-sa's spill (held) and GeReL⁻'s "opposite" wetness (not: its humanoid
+        # penalty is the higher); the project's: the factored belief's spill (held); GeReL⁻'s spill is
+        # not learned and makes no claim, an undecided ordering none either
+        orderings = {
+            "GeReL (per-sa)": {"spill_humanoid_gt_mobile": True, "spill_order_matches_truth": None},
+            "GeReL (factored)": {"spill_humanoid_gt_mobile": True},
+            "GeReL⁻": {"spill_humanoid_gt_mobile": False, "wet_penalty_humanoid_gt_mobile": True},
+        }
         return {
             "table2": {},
             "learned": learned,
@@ -58,7 +79,11 @@ def _summary(name: str) -> dict:
         }
     return {
         "experiment": name,
-        "claims": [_claim(f"{name}: first claim", True, "1.0"), _claim(f"{name}: second claim", False, "0.5")],
+        "claims": [
+            _claim(OURS, f"{name}: first claim", True, "1.0"),
+            _claim(OURS, f"{name}: second claim", False, "0.5"),
+            _claim(CONTROL, f"{name}: a control", True, "0.9"),
+        ],
         "table_md": f"{name} (Table 3): ours\n\n| world | x |\n|---|---|\n| w | 1 |\n",
     }
 
@@ -90,16 +115,25 @@ def test_report_shows_every_experiment_with_its_claims_and_marks_fast_and_partia
     assert md.count("`--fast`: numbers mean nothing") == 1
     assert "partial: 1 jobs missing" in md and "`w/job2`" in md
     assert "2 of 3 jobs finished" in md
-    # the tally counts the full runs' claims only: every experiment but table1 and coffee with 1 held + 1 not
-    # (lambda twice), table1 1 + 1, coffee 1 held (its undecided ordering is left out)
+    # the tally counts the full runs' claims of the dissertation only: every experiment but table1 and
+    # coffee with 1 held + 1 not (lambda twice), table1 1 + 1, coffee 1 + 1; the project's checks apart:
+    # 1 held per generic run, table1 1 + 1, coffee 1 held
     generic = len(registry.NAMES) - 2 + 1
-    assert f"Over the full-preset runs: {generic + 2} ✓, {generic + 1} ✗." in md
+    assert f"the dissertation's claims: {generic + 2} ✓, {generic + 2} ✗;" in md
+    assert f"the project's own checks: {generic + 2} ✓, 1 ✗." in md
+    lowest = SOURCES["table1/gerel-lowest"]
     assert (
-        "| ✓ | reversed, tied belief: GeReL has the lowest d(R) of the four methods | GeReL 2, best other SERD 3 |"
-        in md
+        "| ✓ | reversed, per-sa belief: GeReL has the lowest d(R) of the four methods | "
+        f"{lowest.where}: {lowest.says} | GeReL 2, best other SERD 3 |" in md
     )
-    assert "| ✗ | reversed, tied belief: GeReL's d(Θ) ≤ 0.10 | 0.2 |" in md
-    assert "| ✓ | GeReL learns a higher spill probability for the humanoid than for the mobile robot |" in md
+    assert "| ✓ | reversed, tied belief: GeReL has the lowest d(R) of the four methods | §2.2.2, l. 237: " in md
+    tied = md.index("| ✗ | reversed, tied belief: GeReL's d(Θ) ≤ 0.10 | §2.3.1, l. 378: A target the project set")
+    table1 = md[md.index("## GeReL on the grid world") : md.index("## The coffee-robot user study")]
+    assert table1.index("The dissertation's claims:") < table1.index("The project's own checks (outside the tally):")
+    assert md.index("The project's own checks (outside the tally):") < tied
+    assert "| ✓ | GeReL (per-sa) learns a higher spill probability (with the umbrella) for the humanoid" in md
+    assert "| ✗ | GeReL⁻ discovers the opposite: a higher wet penalty for the mobile robot" in md
+    assert "GeReL⁻ learns a higher spill" not in md and "GeReL⁻ discovers the opposite per unit" not in md
     assert "mindgap reproduce nav --fast --out" in md
     # our table beside the dissertation's, picked out of table.md by its caption
     assert md.index("eps (Table 3): ours") > md.index("### Table 3")
@@ -117,9 +151,13 @@ def test_the_tally_names_finished_full_runs_with_or_without_claims(tmp_path):
     _folder(runs, "priors", "fast")
     _folder(runs, "lambda", "full", missing=("w/job2",))
     _folder(runs, "coffee", "full", summary=False)  # under way: nothing assembled yet
-    sentence = tally_sentence(find_runs([runs]))
-    # the partial run's claims count, and the sentence says whose they are
-    assert sentence.startswith("2 of 4 claims hold in the full runs of nav, sampling (partial: coffee, lambda);")
+    found = find_runs([runs])
+    sentence = tally_sentence(found)
+    # the partial run's claims count, and the sentence says whose they are; the project's checks do not
+    assert sentence.startswith(
+        "2 of 4 of the dissertation's claims hold in the full runs of nav, sampling (partial: coffee, lambda);"
+    )
+    assert tally(found, PROJECT) == {"held": 2, "failed": 0, "undecided": 0}
     rest = sentence.split("not run in full yet: ")[1].split(", ")
     assert "priors" in rest and "lambda" not in rest and "nav" not in rest and "sampling" not in rest
 
@@ -165,11 +203,22 @@ def test_readme_claims_block_is_rewritten_between_its_markers_and_refused_withou
     _folder(runs, "nav", "full")
     _folder(runs, "eps", "fast")
     readme = tmp_path / "README.md"
-    readme.write_text("# x\n\nbefore\n<!-- claims:start -->\nold\n<!-- claims:end -->\nafter\n")
+    readme.write_text("# x\n\nbefore\n<!-- claims:start -->\nthe stale table\n<!-- claims:end -->\nafter\n")
     assert main(["report", str(runs), "--out", str(tmp_path / "r"), "--readme", str(readme)]) == 0
     text = readme.read_text()
-    assert "old" not in text and text.startswith("# x\n\nbefore\n") and text.endswith("<!-- claims:end -->\nafter\n")
-    assert "([run](runs/nav-full/)) (§3.4.2.1, §3.4.3) | nav: first claim | 1.0 | ✓ |" in text
+    assert (
+        "the stale table" not in text
+        and text.startswith("# x\n\nbefore\n")
+        and text.endswith("<!-- claims:end -->\nafter\n")
+    )
+    ours = SOURCES[OURS]
+    assert (
+        f"([run](runs/nav-full/)) (§3.4.2.1, §3.4.3) | nav: first claim | {ours.where}: {ours.says} | 1.0 | ✓ |" in text
+    )
+    control = SOURCES[CONTROL]
+    checks = text.split("outside the tally:")[1]
+    assert f"| nav: a control | {control.where}: {control.says} | 0.9 | ✓ |" in checks
+    assert "nav: first claim" not in checks
     assert "docs/experiments/prefbias.md)" in text
     assert "eps:" not in text  # a fast run's claims mean nothing
     plain = tmp_path / "PLAIN.md"
@@ -178,7 +227,8 @@ def test_readme_claims_block_is_rewritten_between_its_markers_and_refused_withou
     assert main(["report", str(runs), "--out", str(out), "--readme", str(plain)]) == 2
     assert "claims:start" in capsys.readouterr().err
     assert plain.read_text() == "no markers\n" and not out.exists()
-    assert claims_markdown(find_runs([runs])).count("\n") == 2 + 2  # header, rule, nav's two claims
+    ours, _, checks = claims_markdown(find_runs([runs])).partition("outside the tally:")
+    assert ours.count("\n| nav (") == 2 and checks.count("\n| nav (") == 1  # nav's two claims, its control
 
 
 def test_table_blocks_cut_table_md_at_its_captions():

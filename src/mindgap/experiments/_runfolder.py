@@ -10,6 +10,7 @@ from dataclasses import MISSING, asdict, fields, is_dataclass
 from pathlib import Path
 
 from .._io import atomic_write
+from .claim_sources import PROJECT, sourced
 
 
 def write_csv(path: Path, rows: list[dict], columns: list[str]) -> None:
@@ -141,13 +142,15 @@ class RunFolder:
 
 def print_run(summary: dict, out: Path, only: str | None, outputs: str = "curves and figures") -> int:
     """What ``mindgap reproduce NAME`` prints at the end: the one job's numbers (``--job``), or the
-    table, each claim as held or not, the jobs still missing and where the outputs are. Returns 0."""
+    table, each claim as held or not (the project's own checks marked), the jobs still missing and where the
+    outputs are. Returns 0."""
     if only:
         print(job_summary(summary["job"], out, only))
         return 0
     print(summary["table_md"])
     for c in summary.get("claims", []):
-        print(f"[{'ok' if c['held'] else 'not met'}] {c['text']}: {c['measured']}")
+        own = sourced(summary.get("experiment", ""), c)["kind"] == PROJECT  # not the dissertation's claim
+        print(f"[{'ok' if c['held'] else 'not met'}] {'(project check) ' * own}{c['text']}: {c['measured']}")
     if summary.get("missing_jobs"):
         print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
     print(f"results, {outputs} in {out}/")

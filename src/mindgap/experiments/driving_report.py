@@ -132,11 +132,15 @@ BEHAVIOUR_ROWS = (
 
 
 def _claims(by: dict) -> list[dict]:
+    """§4.4.2.1's claims (Table 5 and Figs. 34–36; l. 1081–1087) and the project's coin-flip control,
+    as measured (sources by id: :data:`~.claim_sources.SOURCES`). "Significantly lower" (DRLHP's
+    return, l. 1087) is checked as the lowest: the rule is weaker than the words."""
     out = []
     if "drlhp" in by and CONTROL in by:
         a, c = by["drlhp"], by[CONTROL]
         out.append(
             pc.claim(
+                "driving/control",
                 "driving: DRLHP follows the answers: it brakes first in most seeds on the participants' answers "
                 "(≥ 4 of 5) and in few on coin flips (≤ 1 of 5)",
                 a["seeds_braking_first"] >= 0.8 * a["seeds"] and c["seeds_braking_first"] <= 0.2 * c["seeds"],
@@ -149,21 +153,24 @@ def _claims(by: dict) -> list[dict]:
         g = {m: by[m]["return_mean"] for m in METHODS}
         out.append(
             pc.claim(
-                "driving: EPS is rated highest by the new participants",
+                "driving/eps-rated-highest",
+                "driving: the new participants rate EPS the most preferable (the highest average rating)",
                 r["eps"] > max(r["sac"], r["drlhp"]),
                 ", ".join(f"{LABELS[m]} {r[m]:.1f}" for m in METHODS),
             )
         )
         out.append(
             pc.claim(
-                "driving: SAC has the highest return",
+                "driving/sac-highest-return",
+                "driving: under the reward from the training phase SAC performs best (the highest return)",
                 g["sac"] > max(g["eps"], g["drlhp"]),
                 ", ".join(f"{LABELS[m]} {g[m]:.1f}" for m in METHODS),
             )
         )
         out.append(
             pc.claim(
-                "driving: DRLHP has the lowest return",
+                "driving/drlhp-lowest-return",
+                "driving: DRLHP obtains a lower return than the other two (the lowest)",
                 g["drlhp"] < min(g["eps"], g["sac"]),
                 ", ".join(f"{LABELS[m]} {g[m]:.1f}" for m in METHODS),
             )
@@ -171,7 +178,9 @@ def _claims(by: dict) -> list[dict]:
         fc = {m: by[m]["first_change_mean"] for m in METHODS}
         out.append(
             pc.claim(
-                "driving: SAC changes lane first (earliest first lane change, in most episodes)",
+                "driving/sac-steers-first",
+                "driving: SAC steers at once when the front car slows down (the earliest first lane change, "
+                "changing lane in most episodes)",
                 np.isfinite(fc["sac"])
                 and by["sac"]["changed_mean"] > 0.5
                 # strictly: a tie is not "first"; never changing lane (NaN) is later
@@ -182,7 +191,9 @@ def _claims(by: dict) -> list[dict]:
         gap, col = {m: by[m]["min_gap_mean"] for m in METHODS}, {m: by[m]["collided_mean"] for m in METHODS}
         out.append(
             pc.claim(
-                "driving: DRLHP brakes in lane and gets closest to the front car (or collides most)",
+                "driving/drlhp-brakes-in-lane",
+                "driving: DRLHP brakes while staying in its lane and gets dangerously close to the front car "
+                "(closest to it, or colliding most)",
                 # braking in lane: braking before any lane change, or staying in lane, in most episodes
                 (by["drlhp"]["braked_first_mean"] > 0.5 or by["drlhp"]["changed_mean"] < 0.5)
                 and all(gap["drlhp"] < gap[m] or col["drlhp"] > col[m] for m in ("eps", "sac")),
@@ -193,7 +204,8 @@ def _claims(by: dict) -> list[dict]:
         )
         out.append(
             pc.claim(
-                "driving: EPS brakes first, then changes lane (in most episodes)",
+                "driving/eps-brakes-then-steers",
+                "driving: EPS first brakes, then steers to the other lane (in most episodes)",
                 by["eps"]["braked_first_mean"] > 0.5 and by["eps"]["changed_mean"] > 0.5,
                 f"braked first {pc.share(by['eps']['braked_first_mean'])}, changed lane {pc.share(by['eps']['changed_mean'])}",
             )

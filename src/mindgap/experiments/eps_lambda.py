@@ -1,4 +1,4 @@
-"""Experiment ``lambda``: EPS's reconciliation factor λ from 0 to 3 on d1–d4 (dissertation §4.4.3, Fig. 31).
+"""Experiment ``lambda``: EPS's reconciliation factor λ from 0 to 3 on d1–d4 (dissertation §4.4.1.4, Fig. 31).
 
 λ weighs the person's expectations (u_H, and the entropy terms) against the task reward in
 Eq. 4.6: at λ = 0 EPS is SAC on r_A with no entropy bonus; the larger λ, the more it does
@@ -9,7 +9,7 @@ Outputs in the run folder:
 
 * ``results.csv``: per world and λ, the return and explicability score of ``rollouts``
   stochastic episodes per seed (mean, std over seeds), greedy return, routes;
-* ``curves.csv``; ``table.md``; ``summary.json`` (with the issue's claim per world: the
+* ``curves.csv``; ``table.md``; ``summary.json`` (with the claims per world: the
   explicability score rises and the return falls with λ, each within seed noise of
   monotone — :func:`~.eps_common.monotone_within_noise`);
 * ``routes.png`` (Fig. 31: per world, each λ's greedy routes from light green, small λ,
@@ -127,16 +127,28 @@ def write_outputs(cfg: LambdaConfig, out: Path, records: dict) -> dict:
 
 
 def _claims(world, rows: list[dict], seeds: int) -> list[dict]:
-    """Fig. 31 (§4.4.1): across λ the explicability score rises and the return falls, each within seed noise."""
+    """Fig. 31 (§4.4.1.4, l. 1008): "the lower the λ, the closer the behavior is to the SAC agent, while the
+    higher the λ, the closer the behavior is to the human's expectation", checked as the explicability
+    score rising and the return (which SAC maximises) falling across λ, each within seed noise."""
     if len(rows) < 2:
         return []
     out = []
-    for name, rising, verb in (("explicability", True, "rises"), ("return", False, "falls")):
+    for claim_id, statement, name, rising, verb in (
+        (
+            "lambda/explicability-rises",
+            "the higher λ, the closer EPS to the person's expectation",
+            "explicability",
+            True,
+            "rises",
+        ),
+        ("lambda/return-falls", "the lower λ, the closer EPS to SAC", "return", False, "falls"),
+    ):
         means = [r[f"{name}_mean"] for r in rows]
         held, worst = ec.monotone_within_noise(means, [r[f"{name}_std"] for r in rows], seeds, rising)
         out.append(
             pc.claim(
-                f"{world.name}: the {name} {verb} with λ within seed noise",
+                claim_id,
+                f"{world.name}: {statement}: the {name} {verb} with λ within seed noise",
                 held,
                 ", ".join(f"{m:.1f}" for m in means)
                 + (

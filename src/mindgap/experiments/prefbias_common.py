@@ -34,6 +34,7 @@ from ..models.reward_ensemble import RewardConfig, ensemble_reward
 from ..planning.terrain_maps import noise_maps, stay_maps, table_noise_map, table_stay_map
 from . import registry
 from ._runfolder import RunFolder
+from .claim_sources import claim as claim  # the experiments' claims, with their sources' ids
 from .world_measures import (
     experiment_world,
     has_map,
@@ -540,8 +541,3 @@ def _finite(obj):
     if isinstance(obj, np.integer):
         return int(obj)
     return obj
-
-
-def claim(text: str, held, measured: str) -> dict:
-    """One of the issue's expectations, as measured (``held`` False where a number is missing)."""
-    return {"text": text, "held": bool(held), "measured": measured}

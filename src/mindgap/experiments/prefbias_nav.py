@@ -21,7 +21,7 @@ Outputs in the run folder:
   the pit; :func:`~.prefbias_common.route_of`), terrain shares, the learned reward's error;
 * ``curves_WORLD.png`` (Figs. 16, 17: mean ± std over seeds, the planning check's return
   dashed), ``trajectories_WORLD.png`` (Fig. 21: greedy rollouts of PrefBias with the largest
-  budget, PEBBLE and SAC), ``summary.json`` (rows, the issue's claims as measured), ``table.md``.
+  budget, PEBBLE and SAC), ``summary.json`` (rows, the claims as measured), ``table.md``.
 """
 
 from __future__ import annotations
@@ -87,7 +87,11 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
         if cfg.coin:
             q = max(cfg.budgets)
             pb = replace(cfg.learners.prefbias, queries=q)
-            out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries, coin-flip answers)", f"prefbias-q{q}-coin", person="coin"))
+            out.append(
+                pc.prefbias_job(
+                    w, pb, f"PrefBias ({q} queries, coin-flip answers)", f"prefbias-q{q}-coin", person="coin"
+                )
+            )
     return out
 
 
@@ -111,7 +115,9 @@ def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:
     for spec in cfg.worlds:
         world = wm.experiment_world(spec, "nav")
         routes.append(f"{world.name}: {wm.route_name(world)}")
-        recs = sorted([r for r in learned if r["world"] == spec] + ([oracles[spec]] if spec in oracles else []), key=_order)
+        recs = sorted(
+            [r for r in learned if r["world"] == spec] + ([oracles[spec]] if spec in oracles else []), key=_order
+        )
         if not recs:
             continue
         ref = refs.get(spec)
@@ -160,7 +166,9 @@ def _se(a: dict, b: dict) -> float:
 
 
 def _claims(world, rows: list[dict]) -> list[dict]:
-    """What the issues ask of the full run, measured on this world (held is False where not measured)."""
+    """§3.4.3's claims on this world (l. 739, 741) and the project's controls (coin-flip answers,
+    an unbiased person), as measured; held is False where not measured. Sources by id:
+    :data:`~.claim_sources.SOURCES`."""
     biased = [r for r in rows if r.get("person", "biased") == "biased"]
     unbiased = [r for r in rows if r.get("person") == "unbiased"]
     pb = [r for r in biased if r["method"] == "prefbias"]
@@ -171,7 +179,9 @@ def _claims(world, rows: list[dict]) -> list[dict]:
     route = wm.route_name(world)
     out = [
         pc.claim(
-            f"{world.name}: {top['label']} reaches ≥ {PREFBIAS_FLOOR:.0%} of the oracle",
+            "nav/prefbias-reaches-sac",
+            f"{world.name}: {top['label']} reaches the performance of SAC, the oracle "
+            f"(normalised score ≥ {PREFBIAS_FLOOR:.0%})",
             top["normalised_mean"] >= PREFBIAS_FLOOR,
             f"normalised {top['normalised_mean']:.2f}",
         )
@@ -179,7 +189,8 @@ def _claims(world, rows: list[dict]) -> list[dict]:
     if route != "-":  # a world whose [expect] names the better route
         out.append(
             pc.claim(
-                f"{world.name}: {top['label']} takes {route} in most seeds",
+                "nav/prefbias-route",
+                f"{world.name}: {top['label']} recovers the optimal behaviour as SAC does: {route} in most seeds",
                 top["better_route"] > 0.5,
                 f"{pc.share(top['better_route'])} of seeds",
             )
@@ -187,7 +198,9 @@ def _claims(world, rows: list[dict]) -> list[dict]:
     for r in peb:
         out.append(
             pc.claim(
-                f"{world.name}: {r['label']} stays at or below {PEBBLE_CEILING:.0%} of the oracle",
+                "nav/pebble-below-sac",
+                f"{world.name}: {r['label']} obtains less return than SAC, the oracle "
+                f"(normalised score ≤ {PEBBLE_CEILING:.0%})",
                 r["normalised_mean"] <= PEBBLE_CEILING,
                 f"normalised {r['normalised_mean']:.2f}",
             )
@@ -195,7 +208,8 @@ def _claims(world, rows: list[dict]) -> list[dict]:
         if route != "-":
             out.append(
                 pc.claim(
-                    f"{world.name}: {r['label']} takes the person's route (not {route}) in most seeds",
+                    "nav/pebble-route",
+                    f"{world.name}: {r['label']} follows the person's biased belief: not {route} in most seeds",
                     r["better_route"] < 0.5,
                     f"{pc.share(1 - r['better_route'])} of seeds off {route}",
                 )
@@ -203,7 +217,9 @@ def _claims(world, rows: list[dict]) -> list[dict]:
         if "reward_error_mean" in top and "reward_error_mean" in r:
             out.append(
                 pc.claim(
-                    f"{world.name}: {top['label']}'s reward error is below {r['label']}'s",
+                    "nav/reward-error",
+                    f"{world.name}: PEBBLE's reward is misguided by the biased belief: "
+                    f"{top['label']}'s reward error is below {r['label']}'s",
                     top["reward_error_mean"] < r["reward_error_mean"],
                     f"{top['reward_error_mean']:.2f} vs {r['reward_error_mean']:.2f}",
                 )
@@ -216,6 +232,7 @@ def _claims(world, rows: list[dict]) -> list[dict]:
             a = twin[0]
             out.append(
                 pc.claim(
+                    "nav/coin-control",
                     f"{world.name}: {a['label']} learns from the answers: above coin-flip answers by ≥ 2 standard errors",
                     a["normalised_mean"] - c["normalised_mean"] >= 2 * _se(a, c),
                     f"normalised {a['normalised_mean']:.2f} vs {c['normalised_mean']:.2f}",
@@ -228,6 +245,7 @@ def _claims(world, rows: list[dict]) -> list[dict]:
         gap = a["normalised_mean"] - b["normalised_mean"]
         out.append(
             pc.claim(
+                "nav/unbiased-control",
                 f"{world.name}: with an unbiased person PrefBias is no worse than PEBBLE (within 2 standard errors)",
                 gap >= -2 * _se(a, b),
                 f"normalised {a['normalised_mean']:.2f} vs {b['normalised_mean']:.2f}",

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from .._io import atomic_write
 from . import registry
+from .claim_sources import DISSERTATION, PROJECT
 from .report_catalog import CATALOG, GRID, claims
 
 _MIME = {".png": "image/png", ".gif": "image/gif", ".svg": "image/svg+xml", ".webp": "image/webp"}
@@ -45,6 +46,16 @@ class Run:
     @property
     def fast(self) -> bool:
         return self.preset == "fast"
+
+    @property
+    def dissertation_claims(self) -> list[dict]:
+        """The claims the dissertation makes (:data:`~.claim_sources.DISSERTATION`): the tally's."""
+        return [c for c in self.claims if c["kind"] == DISSERTATION]
+
+    @property
+    def project_checks(self) -> list[dict]:
+        """The project's own checks (:data:`~.claim_sources.PROJECT`): shown apart, outside the tally."""
+        return [c for c in self.claims if c["kind"] != DISSERTATION]
 
     @property
     def command(self) -> str:
@@ -133,9 +144,12 @@ def _experiment(path: Path, config: dict, summary: dict | None, progress: dict |
     raise ValueError(f"{path}: not a run folder of a named experiment ({', '.join(registry.NAMES)})")
 
 
-def tally(runs: list[Run]) -> dict:
-    """Claims held / not held / undecided over the full-preset runs (fast runs' numbers mean nothing)."""
-    counted = [c for r in runs if not r.fast for c in r.claims]
+def tally(runs: list[Run], kind: str = DISSERTATION) -> dict:
+    """The dissertation's claims (or, with ``kind`` :data:`~.claim_sources.PROJECT`, the project's
+    own checks) held / not held / undecided over the full-preset runs (fast runs' numbers mean nothing)."""
+    counted = [
+        c for r in runs if not r.fast for c in (r.dissertation_claims if kind == DISSERTATION else r.project_checks)
+    ]
     return {
         "held": sum(c["held"] is True for c in counted),
         "failed": sum(c["held"] is False for c in counted),
@@ -199,6 +213,7 @@ def _context(runs: list[Run], out: Path, embed: bool) -> dict:
     return {
         "sections": sections,
         "tally": tally(runs),
+        "checks_tally": tally(runs, PROJECT),
         "version": __version__,
         "written": time.strftime("%Y-%m-%d %H:%M %Z"),
     }
@@ -249,12 +264,15 @@ def write_report(paths, out: str | Path = "report") -> tuple[Path, Path, list[Ru
 
 
 def claims_markdown(runs: list[Run], relative_to: str | Path | None = None) -> str:
-    """The claims of the full-preset runs as one Markdown table (✓ held, ✗ not, – undecided).
+    """The claims of the full-preset runs as Markdown (✓ held, ✗ not, – undecided): a table of the
+    dissertation's claims, each with where the dissertation says it, then, apart, a table of the
+    project's own checks with why the project checks them (none: no second table).
 
     With ``relative_to`` (the folder of the file the table goes into), each experiment links
     to its documentation page and its run's tables (``table.md``, else the run folder).
     """
-    lines = ["| experiment | claim | measured | |", "|---|---|---|---|"]
+    ours = ["| experiment | claim, as checked here | the dissertation | measured | |", "|---|---|---|---|---|"]
+    checks = ["| experiment | check | why the project checks it | measured | |", "|---|---|---|---|---|"]
     for run in runs:
         if run.fast:
             continue
@@ -270,8 +288,16 @@ def claims_markdown(runs: list[Run], relative_to: str | Path | None = None) -> s
                 where = f"[{run.experiment}]({_rel(docs, base)}) ([run]({target}))"
         for c in run.claims:
             mark = {True: "✓", False: "✗", None: "–"}[c["held"]]
-            lines.append(f"| {where} ({entry.section}) | {c['text']} | {c['measured']} | {mark} |")
-    return "\n".join(lines) + "\n"
+            source = f"{c['where']}: {c['says']}" if c["where"] else c["says"]
+            rows = ours if c["kind"] == DISSERTATION else checks
+            rows.append(f"| {where} ({entry.section}) | {c['text']} | {source} | {c['measured']} | {mark} |")
+    text = "\n".join(ours) + "\n"
+    if len(checks) > 2:
+        text += (
+            "\nThe project's own checks (controls, thresholds it chose, belief parameterisations the "
+            "dissertation does not use), outside the tally:\n\n" + "\n".join(checks) + "\n"
+        )
+    return text
 
 
 def _rel(path: Path, base: Path) -> str:
@@ -311,7 +337,8 @@ def _between(text: str, start: str, end: str, block: str) -> str:
 
 
 def tally_sentence(runs: list[Run]) -> str:
-    """``N of M claims hold in the full runs of …; not run in full yet: …`` (fast runs left out).
+    """``N of M of the dissertation's claims hold in the full runs of …; not run in full yet: …``
+    (fast runs and the project's own checks left out).
 
     An experiment counts as run in full when a finished (assembled, no job missing) full-preset
     run of it is among ``runs``, whether or not it decides claims by a rule (``sampling`` only
@@ -328,6 +355,6 @@ def tally_sentence(runs: list[Run]) -> str:
         n for n in registry.NAMES if n not in full and any(r.experiment == n and r.preset == "full" for r in runs)
     ]
     rest = [n for n in registry.NAMES if n not in full and n not in partial]
-    text = f"{t['held']} of {total} claims hold in the full runs of {', '.join(full) or 'no experiment'}"
+    text = f"{t['held']} of {total} of the dissertation's claims hold in the full runs of {', '.join(full) or 'no experiment'}"
     text += f" (partial: {', '.join(partial)})" if partial else ""
     return text + (f"; not run in full yet: {', '.join(rest)}" if rest else "")

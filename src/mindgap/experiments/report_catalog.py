@@ -2,15 +2,18 @@
 
 :data:`CATALOG` holds, per named experiment, the dissertation's tables (its numbers) or a
 description of its figures, and which files of a run folder show ours beside them.
-:func:`claims` turns a run folder's ``summary.json`` into claims ``{text, held, measured}``:
-the PrefBias and EPS experiments write their claims themselves; Table 1's ``checks`` and
-the coffee study's ``orderings`` are put in the same form here, with the numbers that
-decide them.
+:func:`claims` turns a run folder's ``summary.json`` into claims ``{id, text, held, measured}``
+with their sources (:mod:`~.claim_sources`: the dissertation's claim or the project's own
+check, where the dissertation says it): the PrefBias, EPS and driving experiments write their
+claims themselves; Table 1's ``checks`` and the coffee study's ``orderings`` are put in the
+same form here, with the numbers that decide them.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
+
+from .claim_sources import DISSERTATION_BELIEF, sourced
 
 
 class Item(NamedTuple):
@@ -117,7 +120,8 @@ CATALOG: dict[str, Entry] = {
                 "Fig. 12",
                 "Feature weights and spill probability learned per participant: GeReL's spill "
                 "probability (umbrella while holding coffee) is larger for the humanoid than for the "
-                "mobile robot, as the participants answered; GeReL⁻ cannot separate the two.",
+                "mobile robot, as the participants answered, and so is the weight they put on the robot "
+                "staying dry; GeReL⁻ finds “just the opposite” about wetness (l. 448, 455).",
                 ("fig12.png",),
                 ("results.csv",),
                 ("Learned per robot",),
@@ -284,18 +288,24 @@ _METRIC = {"d_R": "d(R)", "d_Theta": "d(Θ)", "d_pi": "d(π)"}
 
 
 def claims(name: str, summary: dict) -> list[dict]:
-    """The claims of a run folder's ``summary.json``: ``{text, held, measured}`` each.
+    """The claims of a run folder's ``summary.json``: ``{id, text, held, measured}`` each, with
+    their source's ``kind``, ``where`` and ``says`` (:func:`~.claim_sources.sourced`).
 
     ``held`` is ``True``, ``False`` or ``None`` (not decidable from this run).
     """
     if name == "table1":
-        return _table1_claims(summary)
-    if name == "coffee":
-        return _coffee_claims(summary)
-    return [dict(c) for c in summary.get("claims", [])]
+        made = _table1_claims(summary)
+    elif name == "coffee":
+        made = _coffee_claims(summary)
+    else:
+        made = [dict(c) for c in summary.get("claims", [])]
+    return [sourced(name, c) for c in made]
 
 
 def _table1_claims(summary: dict) -> list[dict]:
+    """Table 1's ``checks`` as claims. On the dissertation's belief (:data:`~.claim_sources.DISSERTATION_BELIEF`)
+    they are §2.3.1's claims; on a parameterisation the project adds, its own checks; the tied
+    belief's bounds on d(Θ) and d(π) are targets the project set."""
     stats, out = summary.get("stats", {}), []
 
     def mean(key, method, metric):
@@ -305,55 +315,114 @@ def _table1_claims(summary: dict) -> list[dict]:
     for key, checks in summary.get("checks", {}).items():
         param, setting = key.split("|")
         where = f"{setting}, {param} belief"
+        ours = param == DISSERTATION_BELIEF
+
+        def source(cid):
+            return cid if ours else "table1/other-belief"
+
         for check, held in checks.items():
             if check.startswith("gerel_lowest_"):
                 m = check[len("gerel_lowest_") :]
                 others = {_LABELS[o]: mean(key, o, m) for o in _LABELS if o != "gerel"}
                 best = min(others, key=others.get)
+                cid = source("table1/gerel-lowest")
                 text = f"{where}: GeReL has the lowest {_METRIC[m]} of the four methods"
                 measured = f"GeReL {mean(key, 'gerel', m):.3g}, best other {best} {others[best]:.3g}"
             elif check == "gerel_beats_minus_and_maxent":
-                text = f"{where}: GeReL beats GeReL⁻ and MaxEnt-IRL on d(R), d(Θ) and d(π)"
+                cid = source("table1/beats-unaware")
+                text = f"{where}: GeReL outperforms GeReL⁻ and MaxEnt-IRL on d(R), d(Θ) and d(π)"
                 measured = ", ".join(
                     f"{_METRIC[m]} {mean(key, 'gerel', m):.3g} vs "
                     f"{min(mean(key, 'gerel-minus', m), mean(key, 'maxent-irl', m)):.3g}"
                     for m in _METRIC
                 )
             elif check == "unaware_corr_negative":
-                text = f"{where}: GeReL⁻ and MaxEnt-IRL learn a reward anti-correlated with the truth"
+                cid = source("table1/unaware-opposite")
+                text = (
+                    f"{where}: GeReL⁻ and MaxEnt-IRL converge in the opposite direction "
+                    "(a reward anti-correlated with the truth)"
+                )
                 measured = f"corr {mean(key, 'gerel-minus', 'corr_R'):.2f} and {mean(key, 'maxent-irl', 'corr_R'):.2f}"
             elif check.startswith("tied_"):
                 metric, bound = check[len("tied_") :].split("<=")
+                cid = "table1/tied-target"
                 text = f"{where}: GeReL's {_METRIC[metric]} ≤ {bound}"
                 measured = f"{mean(key, 'gerel', metric):.3g}"
-            else:
-                text, measured = f"{where}: {check}", ""
-            out.append({"text": text, "held": bool(held), "measured": measured})
+            else:  # a check this reader does not know: no dissertation statement to tie it to
+                cid, text, measured = None, f"{where}: {check}", ""
+            out.append({"id": cid, "text": text, "held": bool(held), "measured": measured})
     return out
 
 
 _COFFEE = {
-    "spill_humanoid_gt_mobile": "learns a higher spill probability for the humanoid than for the mobile robot",
-    "wet_penalty_humanoid_gt_mobile": "learns a higher wet penalty for the humanoid",
-    "wet_per_coffee_humanoid_gt_mobile": "learns a higher wet penalty per unit of coffee for the humanoid",
-    "spill_order_matches_truth": "orders the robots' spill probabilities as the participants' own beliefs do",
-    "wet_order_matches_truth": "orders the wet penalties as the participants' own rewards do",
-    "wet_per_coffee_order_matches_truth": "orders wet penalty per coffee as the participants' own rewards do",
+    "spill_humanoid_gt_mobile": (
+        "coffee/gerel-spill",
+        "learns a higher spill probability (with the umbrella) for the humanoid than for the mobile robot",
+    ),
+    "wet_penalty_humanoid_gt_mobile": (
+        "coffee/gerel-wet",
+        "learns that the participants care more about the robot getting wet with the humanoid (a higher wet penalty)",
+    ),
+    "wet_per_coffee_humanoid_gt_mobile": (
+        "coffee/wet-per-coffee",
+        "learns a higher wet penalty per unit of coffee weight for the humanoid",
+    ),
+    "spill_order_matches_truth": (
+        "coffee/as-truth",
+        "orders the robots' spill probabilities as the participants' own beliefs do",
+    ),
+    "wet_order_matches_truth": ("coffee/as-truth", "orders the wet penalties as the participants' own rewards do"),
+    "wet_per_coffee_order_matches_truth": (
+        "coffee/as-truth",
+        "orders wet penalty per coffee as the participants' own rewards do",
+    ),
 }
+"""The coffee study's ``orderings``: the claim's id (on the dissertation's belief) and what it says."""
+
+_MINUS = "GeReL⁻"
+_OPPOSITE = {
+    "wet_penalty_humanoid_gt_mobile": (
+        "coffee/minus-opposite",
+        "discovers the opposite: a higher wet penalty for the mobile robot than for the humanoid",
+    ),
+    "wet_per_coffee_humanoid_gt_mobile": (
+        "coffee/wet-per-coffee",
+        "discovers the opposite per unit of coffee weight: a higher wet penalty per coffee for the mobile robot",
+    ),
+}
+"""GeReL⁻'s orderings read as §2.3.2 states them (l. 455: it "discovered just the opposite")."""
 
 
 def _coffee_claims(summary: dict) -> list[dict]:
+    """The coffee study's ``orderings`` as claims (§2.3.2, l. 448, 455).
+
+    GeReL on the dissertation's belief (:data:`~.claim_sources.DISSERTATION_BELIEF`) makes the
+    dissertation's two claims (spill probability and wet penalty higher for the humanoid); on a
+    parameterisation the project adds, the same orderings are the project's checks. Of GeReL⁻ the
+    dissertation says it "discovered just the opposite" about wetness: its wet-penalty orderings (the
+    penalty, the dissertation's claim, and per unit of coffee weight, the project's variant) are
+    checked for the mobile robot's penalty being the higher. GeReL⁻'s spill probability is the
+    robot's true one (§2.3.1, l. 353: the true dynamics), not learned, so it makes no claim.
+    """
     out = []
     learned = summary.get("learned", {})
     for fit, orderings in summary.get("orderings", {}).items():
+        minus = fit == _MINUS
+        ours = minus or fit.endswith(f"({DISSERTATION_BELIEF})")
+        per = learned.get(fit, {})
         for check, held in orderings.items():
-            if held is None:
+            if held is None or (minus and check.startswith("spill")):
                 continue
+            cid, says = _COFFEE.get(check, (None, check))
             what = check.split("_humanoid")[0].split("_order")[0]
             key = {"spill": "spill", "wet_penalty": "wet_penalty", "wet": "wet_penalty"}.get(what, what)
-            per = learned.get(fit, {})
-            measured = ""
-            if per and key in per.get("humanoid", {}):
-                measured = f"humanoid {per['humanoid'][key][0]:.3g}, mobile {per['mobile'][key][0]:.3g}"
-            out.append({"text": f"{fit} {_COFFEE.get(check, check)}", "held": bool(held), "measured": measured})
+            numbers = per and key in per.get("humanoid", {})
+            measured = f"humanoid {per['humanoid'][key][0]:.3g}, mobile {per['mobile'][key][0]:.3g}" if numbers else ""
+            if minus and check in _OPPOSITE:
+                cid, says = _OPPOSITE[check]
+                # the same comparison, read the other way round: the mobile robot's penalty strictly higher
+                held = per["mobile"][key][0] > per["humanoid"][key][0] if numbers else not held
+            elif not ours and cid in ("coffee/gerel-spill", "coffee/gerel-wet"):
+                cid = "coffee/other-belief"
+            out.append({"id": cid, "text": f"{fit} {says}", "held": bool(held), "measured": measured})
     return out
