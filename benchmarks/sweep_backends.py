@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from mindgap.experiments import backends
+from mindgap import sweeps as backends
 from mindgap.experiments._runfolder import RunFolder, record_path
 
 

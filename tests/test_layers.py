@@ -8,8 +8,9 @@ The top-level modules and subpackages of ``mindgap`` sit in layers, lowest first
 3. ``metrics``, ``algorithms``, ``design``
 4. ``experiments``, ``study``; the public method modules ``sac``, ``pebble``, ``drlhp``,
    ``prefbias``, ``eps`` and their shared ``_api``
-5. ``commands``
-6. ``cli``
+5. ``sweeps`` (many experiments' jobs on workers or Ray)
+6. ``commands``
+7. ``cli``
 
 A module may import only from its own layer or a lower one; imports inside functions
 count too. The package's own ``__init__`` re-exports from every layer and is not checked.
@@ -48,8 +49,9 @@ RANK = {
     "drlhp": 4,
     "prefbias": 4,
     "eps": 4,
-    "commands": 5,
-    "cli": 6,
+    "sweeps": 5,
+    "commands": 6,
+    "cli": 7,
 }
 
 

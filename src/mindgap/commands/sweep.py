@@ -3,8 +3,8 @@
 mindgap sweep sweeps/demo.toml [--backend local|ray] [--workers N] [--address ADDR] [--out DIR] [--fresh] [--check]
 mindgap reproduce table1 --fast --backend local --workers 2
 
-The sweep file is checked whole before anything runs (:mod:`mindgap.experiments.sweep_spec`);
-its jobs run on the backend (:mod:`mindgap.experiments.backends`), each part's outputs are
+The sweep file is checked whole before anything runs (:mod:`mindgap.sweeps.spec`);
+its jobs run on the backend (:mod:`mindgap.sweeps`), each part's outputs are
 assembled from the records, and the store (``results.csv``, ``sweep.json``, the run folders)
 is what ``mindgap report`` reads. Exit status 1 when a job failed (the others' results are kept).
 """
@@ -62,7 +62,9 @@ def _backend_kw(args, spec=None) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..experiments import registry, sweep, sweep_spec
+    from ..experiments import registry
+    from ..sweeps import parts as sweep
+    from ..sweeps import spec as sweep_spec
 
     spec = sweep_spec.load(args.spec)
     root = args.out or spec.out
@@ -94,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
 
 def reproduce(args: argparse.Namespace) -> int:
     """``mindgap reproduce NAME --backend …``: every job of the experiment on the backend, then its outputs."""
-    from ..experiments import registry, sweep
+    from ..experiments import registry
+    from ..sweeps import parts as sweep
 
     for flag in ("shard", "job", "assemble"):
         if getattr(args, flag, None):

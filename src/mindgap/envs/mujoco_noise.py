@@ -17,8 +17,8 @@ x position, so that the person's reward — whose forward term is gymnasium's
 (x' − x) / dt — is a function of the observations (:func:`hopper_reward`,
 :func:`cheetah_reward`); the learners see it too.
 
-This is the host-loop version of these domains. The pure-JAX one on MuJoCo's JAX backend
-(MJX), which the issue on the control domains makes the default, is not built yet.
+This is the host-loop version of these domains; the pure-JAX one on MuJoCo's JAX backend
+(MJX) is :mod:`~mindgap.envs.mjx_locomotion`.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ Per domain, PrefBias learns from 200, 400 and 800 answers, PEBBLE from the same 
 800, SAC on the env's own reward is the oracle (every learner is one job, its seeds
 vmapped or stepped in lockstep). A ``sac-level`` job per host domain trains SAC on the
 *belief* env (the lander in a vacuum, the reliable hopper and cheetah) for
-:data:`LEVELS`' budget, to compare our SAC with the published level the issue asks for.
+:data:`LEVELS`' budget, to compare mindgap's SAC with a published level.
 
 There is no design check for these worlds: :mod:`~mindgap.design.design_check` plans on a
 terrain map. The reference job measures instead which conditions of

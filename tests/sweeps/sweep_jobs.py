@@ -40,8 +40,8 @@ CONFIG = {"stand-in": 1}
 
 
 def job(root: Path, key: str, value: float, **kw):
-    """A :class:`~mindgap.experiments.backends.Job` of :func:`write_record`."""
-    from mindgap.experiments.backends import Job
+    """A :class:`~mindgap.sweeps.Job` of :func:`write_record`."""
+    from mindgap.sweeps import Job
 
     kwargs = {"root": str(root), "key": key, "value": value, **kw}
     log = Path(root) / "logs" / (key.replace("/", "__") + ".log")

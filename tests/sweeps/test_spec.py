@@ -1,4 +1,4 @@
-"""Sweep files (:mod:`mindgap.experiments.sweep_spec`): a bad one is refused before anything runs,
+"""Sweep files (:mod:`mindgap.sweeps.spec`): a bad one is refused before anything runs,
 in one line naming the file, the key and the problem; a good one lists its parts and jobs."""
 
 from __future__ import annotations
@@ -8,7 +8,9 @@ from pathlib import Path
 import pytest
 
 from mindgap.cli import main
-from mindgap.experiments import registry, sweep_grid, sweep_spec
+from mindgap.experiments import registry
+from mindgap.sweeps import grid as sweep_grid
+from mindgap.sweeps import spec as sweep_spec
 
 GOOD = """
 [sweep]

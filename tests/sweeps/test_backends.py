@@ -1,4 +1,4 @@
-"""The backends (:mod:`mindgap.experiments.backends`) on stand-in jobs: same records on both,
+"""The backends (:mod:`mindgap.sweeps`) on stand-in jobs: same records on both,
 a worker killed mid-job retried, a killed sweep rerun finishing only what is missing, failures
 reported with their logs while the other jobs' results are kept.
 
@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 import sweep_jobs as sj
 
-from mindgap.experiments import backends
+from mindgap import sweeps as backends
 
 HERE = Path(__file__).resolve().parent
 
@@ -112,7 +112,7 @@ import sys
 sys.path[:0] = {paths!r}
 import sweep_jobs as sj
 from pathlib import Path
-from mindgap.experiments import backends
+from mindgap import sweeps as backends
 
 if __name__ == "__main__":
     root = Path({root!r})

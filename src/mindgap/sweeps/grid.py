@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import prefbias_common as pc
-from ._runfolder import RunFolder, write_csv
+from ..experiments import prefbias_common as pc
+from ..experiments._runfolder import RunFolder, write_csv
 
 METHODS = ("sac", "pebble", "drlhp", "prefbias")
 """The learners a grid runs: SAC on the true reward, PEBBLE, DRLHP (:mod:`~mindgap.algorithms.pbrl`), PrefBias."""

@@ -3,7 +3,7 @@
 A sweep file holds an optional ``[sweep]`` table (where the store goes and how the jobs run),
 any number of ``[[experiment]]`` tables (a named experiment of ``mindgap reproduce`` with its
 options) and any number of ``[grid]``/``[[grid]]`` tables (learners × worlds ×
-hyperparameters × seeds, :mod:`~.sweep_grid`)::
+hyperparameters × seeds, :mod:`~.grid`)::
 
     [sweep]
     out = "runs/sweeps/demo"     # default: runs/sweeps/<file name>
@@ -34,10 +34,11 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import registry, sweep_grid
-from .backends import BACKENDS
-from .sweep import Part
-from .world_measures import experiment_world
+from ..experiments import registry
+from ..experiments.world_measures import experiment_world
+from . import grid as sweep_grid
+from .jobs import BACKENDS
+from .parts import Part
 
 _SWEEP_KEYS = ("out", "backend", "workers", "address", "retries", "cpus", "gpus")
 _EXPERIMENT_KEYS = ("name", "preset", "label", "seeds", "worlds", "participants")

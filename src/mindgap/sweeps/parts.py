@@ -2,8 +2,8 @@
 
 A sweep is a list of *parts*, each one run folder (:class:`~._runfolder.RunFolder`): a named
 experiment of ``mindgap reproduce`` with its options, or a grid of learners × worlds ×
-hyperparameters × seeds (:mod:`~.sweep_grid`). Every job of every part goes to one backend
-(:mod:`~.backends`) at once, so the parts share the workers; a job whose record exists is
+hyperparameters × seeds (:mod:`~.grid`). Every job of every part goes to one backend
+(:mod:`~.local`, :mod:`~.ray_cluster`) at once, so the parts share the workers; a job whose record exists is
 skipped, which is what makes a killed sweep resumable. When the jobs are done each part's
 outputs are assembled from its records by the experiment's own code (``run(...,
 assemble_only=True)``: no second format), and the sweep's store gets ``results.csv`` (every
@@ -21,8 +21,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._io import atomic_write
-from . import backends, registry, sweep_grid
-from ._runfolder import RunFolder, record_path, write_csv
+from ..experiments import registry
+from ..experiments._runfolder import RunFolder, record_path, write_csv
+from . import grid as sweep_grid
+from . import run as run_jobs
+from .jobs import Job, Outcome
 
 
 @dataclass(frozen=True)
@@ -32,7 +35,7 @@ class Part:
     Attributes:
         name: a named experiment (:data:`~.registry.NAMES`) or ``grid``.
         label: the folder's name under the sweep's store (unique in a sweep).
-        config: the experiment's configuration, or a :class:`~.sweep_grid.GridConfig`.
+        config: the experiment's configuration, or a :class:`~.grid.GridConfig`.
     """
 
     name: str
@@ -45,7 +48,7 @@ def run_experiment_job(name: str, config, out: str, key: str) -> None:
     registry.module(name).run(config, Path(out), fresh=False, progress=False, assemble_only=False, only=key)
 
 
-def part_jobs(part: Part, out: Path, *, cpus: float = 1.0, gpus: float = 0.0) -> list[backends.Job]:
+def part_jobs(part: Part, out: Path, *, cpus: float = 1.0, gpus: float = 0.0) -> list[Job]:
     """The part's jobs for a backend; a job's key is ``LABEL/KEY`` (``KEY`` its record's name)."""
     if part.name == "grid":
         keys = [(job.key, ()) for job in sweep_grid.jobs(part.config)]
@@ -54,7 +57,7 @@ def part_jobs(part: Part, out: Path, *, cpus: float = 1.0, gpus: float = 0.0) ->
         keys = registry.jobs(part.name, part.config)
         call, fixed = run_experiment_job, {"name": part.name, "config": part.config, "out": str(out)}
     return [
-        backends.Job(
+        Job(
             key=f"{part.label}/{key}",
             call=call,
             kwargs={**fixed, "key": key},
@@ -80,7 +83,7 @@ def assemble(part: Part, out: Path, *, progress: bool = False, command: str = ""
 
 @dataclass
 class SweepResult:
-    outcome: backends.Outcome
+    outcome: Outcome
     summaries: dict[str, dict]
     """Each assembled part's summary, by label."""
     errors: dict[str, str]
@@ -105,7 +108,7 @@ def run_parts(
     A part's folder made with another configuration is refused before anything runs
     (``fresh`` empties the parts' finished jobs instead). ``command`` is the line that runs
     the sweep (kept in a grid's ``progress.json``). ``backend_kw`` go to
-    :func:`~.backends.run` (``workers``, ``address``, ``retries``).
+    :func:`mindgap.sweeps.run` (``workers``, ``address``, ``retries``).
     """
     jobs = []
     for part in parts:
@@ -114,7 +117,7 @@ def run_parts(
             for stale in ("train", "logs"):
                 shutil.rmtree(folders[part.label] / stale, ignore_errors=True)
         jobs += part_jobs(part, folders[part.label], cpus=cpus, gpus=gpus)
-    outcome = backends.run(jobs, backend, progress=progress, desc=desc, **backend_kw)
+    outcome = run_jobs(jobs, backend, progress=progress, desc=desc, **backend_kw)
     summaries, errors = {}, {}
     for part in parts:
         try:
