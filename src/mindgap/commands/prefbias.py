@@ -37,7 +37,7 @@ def add_parser(sub) -> None:
         "--teacher",
         default="biased",
         help="biased: r_H + log T_H under the belief; unbiased: r_H + log T (the same person, no bias); "
-                "true: r_H alone (the ordinary B-Pref teacher); "
+        "true: r_H alone (the ordinary B-Pref teacher); "
         "study:STORE: people answering live through the study app (mindgap study serve --db STORE)",
     )
     p.add_argument("--answer-timeout", type=float, default=600.0, help="study teacher: seconds to wait per round")

@@ -19,8 +19,8 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from . import driving
-from ._runfolder import print_run
+from ..experiments import driving
+from ..experiments._runfolder import print_run
 
 
 def reproduce(args) -> int:

@@ -19,8 +19,8 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from . import registry
-from ._runfolder import print_run
+from ..experiments import registry
+from ..experiments._runfolder import print_run
 
 NAMES = ("nav", "priors", "sampling", "eps", "lambda", "gym")
 

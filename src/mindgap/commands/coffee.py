@@ -21,10 +21,10 @@ from ..algorithms.gerel import GeReLConfig
 from ..data.demos import RatedDemonstrations
 from ..envs.coffee import ACTIONS, N_STATES, ROBOTS, make_coffee
 from ..envs.coffee_demos import SANITY
+from ..experiments import coffee
+from ..experiments._runfolder import job_summary, write_csv
 from ..feedback.ratings_file import ParticipantRatings, read_participant_ratings, write_participant_ratings
 from ..teachers.participants import POPULATIONS, QUESTIONS, recruit
-from . import coffee
-from ._runfolder import job_summary, write_csv
 
 
 def reproduce(args, shard) -> int:

@@ -1,0 +1,132 @@
+"""``mindgap reproduce NAME``: a named experiment of the dissertation, run, resumed or assembled in a run folder.
+
+Table 1 is run here; the coffee study (:mod:`~.coffee`), the driving study
+(:mod:`~.reproduce_driving`) and the terrain experiments (:mod:`~.reproduce_terrain`) have their own
+modules, and ``--backend`` hands every job to workers or Ray (:mod:`~.sweep`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+from ..experiments.registry import NAMES as EXPERIMENTS
+from .reproduce_terrain import NAMES as TERRAIN_EXPERIMENTS
+
+
+def add_parser(sub) -> None:
+    """The ``reproduce`` subcommand and its flags."""
+    r = sub.add_parser("reproduce", help="run a named experiment of the dissertation")
+    r.add_argument("name", help=f"experiment: {', '.join(EXPERIMENTS)}")
+    r.add_argument("--fast", action="store_true", help="the quick preset (seconds to minutes)")
+    r.add_argument("--seeds", type=int, help="seeds per setting (overrides the preset)")
+    r.add_argument("--worlds", help="terrain experiments: a comma-separated subset of the worlds (names or files)")
+    r.add_argument(
+        "--env",
+        action="append",
+        metavar="SPEC",
+        help="terrain experiments: run on this world instead (repeatable): a named world, a world file, "
+        "or path.py:factory[,key=value…] with a belief and an exact log_prob",
+    )
+    r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
+    r.add_argument("--sleet", type=float, help="driving: the road's sleet level, 0 (dry) to 1 (full sleet)")
+    r.add_argument("--traffic", type=int, help="driving: other cars on the road (0 to 4 on its three lanes)")
+    r.add_argument(
+        "--sanity",
+        choices=("expectation", "preference"),
+        help="driving: recruits answer the sanity item by which clip they prefer (default) or find more expected",
+    )
+    r.add_argument("--importance", metavar="A,B,C,D", help="driving: the participants' mean importance answers (1-5)")
+    r.add_argument(
+        "--answers-by",
+        choices=("rollout", "rollout-behaviour", "expectation", "decisions"),
+        help="driving: participants judge a clip by its decisions played out in the world they believe in "
+        "(rollout-behaviour, default; rollout also charges a crash they did not expect), by log T_H + log pi_H "
+        "at its states (expectation) or by log pi_H there alone (decisions)",
+    )
+    r.add_argument("--out", type=Path, help="run folder (default runs/NAME or runs/NAME-fast); reruns resume")
+    r.add_argument("--fresh", action="store_true", help="discard finished jobs in the run folder")
+    r.add_argument("--quiet", action="store_true", help="no progress bars")
+    r.add_argument("--assemble", action="store_true", help="write outputs from the finished jobs only; run nothing")
+    r.add_argument("--shard", help="I/N: run only slice I of N (processes sharing --out); rerun without it to assemble")
+    r.add_argument(
+        "--job", metavar="KEY", help="run only this job (a record's `command` names it) and print its record"
+    )
+
+    from . import sweep
+
+    sweep.add_backend_flags(r)
+
+
+def run(args) -> int:
+    """Run ``mindgap reproduce`` (the parsed ``args``)."""
+    if args.name not in EXPERIMENTS:
+        raise ValueError(f"unknown experiment {args.name!r}: choose from {', '.join(EXPERIMENTS)}")
+    from ..experiments import table1
+
+    if args.assemble and (args.fresh or args.shard):
+        raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
+    if args.job and (args.assemble or args.shard):
+        raise ValueError("--job runs one job; it does not combine with --assemble or --shard")
+    for flag in ("worlds", "env"):
+        if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
+            raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
+    for flag in ("sleet", "traffic", "sanity", "importance", "answers_by"):
+        if getattr(args, flag) is not None and args.name != "driving":
+            raise ValueError(f"--{flag.replace('_', '-')} belongs to the driving study")
+    if args.backend:
+        from . import sweep
+
+        return sweep.reproduce(args)
+    for flag in ("workers", "address", "retries", "cpus_per_job", "gpus_per_job"):
+        if getattr(args, flag) is not None:
+            raise ValueError(f"--{flag.replace('_', '-')} goes with --backend local|ray")
+    if args.name == "driving":
+        from . import reproduce_driving
+
+        return reproduce_driving.reproduce(args)
+    if args.name == "coffee":
+        from . import coffee
+
+        return coffee.reproduce(args, shard(args.shard))
+    if args.name in TERRAIN_EXPERIMENTS:
+        from . import reproduce_terrain
+
+        return reproduce_terrain.reproduce(args)
+    if args.participants is not None:
+        raise ValueError("--participants belongs to the coffee study")
+    cfg = table1.preset("fast" if args.fast else "full")
+    if args.seeds is not None:
+        if args.seeds < 1:
+            raise ValueError("--seeds must be at least 1")
+        cfg = replace(cfg, seeds=args.seeds, demo_count_seeds=min(cfg.demo_count_seeds, args.seeds))
+    out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
+    shard_ = shard(args.shard)
+    summary = table1.run(
+        cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard_, assemble_only=args.assemble, only=args.job
+    )
+    if args.job:
+        from ..experiments._runfolder import job_summary
+
+        print(job_summary(summary["job"], out, args.job))
+        return 0
+    if summary is None:
+        print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
+        return 0
+    print(summary["table_md"])
+    if summary.get("missing_jobs"):
+        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
+    print(f"results, curves and figures in {out}/")
+    return 0
+
+
+def shard(spec: str | None) -> tuple[int, int] | None:
+    if not spec:
+        return None
+    try:
+        i, n = (int(x) for x in spec.split("/"))
+    except ValueError:
+        raise ValueError(f"--shard must look like 0/2, got {spec!r}") from None
+    if not 0 <= i < n:
+        raise ValueError(f"--shard {spec}: need 0 <= I < N")
+    return i, n
