@@ -106,7 +106,7 @@ def test_segment_return_counts_absorbing_steps():
     """Σ mask·r(s, a) + Σ absorbed·r_abs, with r_abs = B·tanh(θ_abs/B) (Kostrikov et al. 2019)."""
     params = _bounded_x_member(0.7)
     plain = _seg([[0.5, 0.3, 9.0, 9.0]], mask=[[True, True, False, False]])
-    seg = AbsorbingSegments(*plain, jnp.array([[False, False, True, True]]))  # reached the goal after 2 steps
+    seg = AbsorbingSegments(*plain[:4], jnp.array([[False, False, True, True]]))  # reached the goal after 2 steps
     expect = _bounded(0.5) + _bounded(0.3) + 2 * _bounded(0.7)
     np.testing.assert_allclose(float(segment_returns(params, seg)[0, 0]), expect, rtol=1e-6)
     np.testing.assert_allclose(  # a plain segment has no absorbing steps
@@ -149,8 +149,8 @@ def test_each_terminal_state_has_its_own_absorbing_reward():
 
 def test_bt_loss_gradient_reaches_the_absorbing_reward():
     params = _bounded_x_member(0.2)
-    a = AbsorbingSegments(*_seg([[0.5, 0.0, 0.0]], mask=[[True, False, False]]), jnp.array([[False, True, True]]))
-    b = AbsorbingSegments(*_seg([[0.1, 0.1, 0.1]]), jnp.zeros((1, 3), bool))
+    a = AbsorbingSegments(*_seg([[0.5, 0.0, 0.0]], mask=[[True, False, False]])[:4], jnp.array([[False, True, True]]))
+    b = AbsorbingSegments(*_seg([[0.1, 0.1, 0.1]])[:4], jnp.zeros((1, 3), bool))
     g = jax.grad(bt_loss)(params, a, b, jnp.array([1.0]), jnp.ones((1, 1)))
     # d loss / d θ_abs = −(1 − σ(R_a − R_b)) · 2 · (1 − tanh²(θ_abs/B)) for a preferred segment a
     ra, rb = _bounded(0.5) + 2 * _bounded(0.2), 3 * _bounded(0.1)
@@ -173,7 +173,7 @@ def test_reward_init_and_prefs_with_absorbing_state(key):
     with pytest.raises(ValueError, match="absorbing"):
         reward_init(key, 2, 2, cfg, absorbing="many")
     store = prefs_init(4, 3, 2, 2, absorbing=True)
-    seg = AbsorbingSegments(*_seg(jnp.ones((2, 3))), jnp.array([[False, False, True], [False, False, False]]))
+    seg = AbsorbingSegments(*_seg(jnp.ones((2, 3)))[:4], jnp.array([[False, False, True], [False, False, False]]))
     data = prefs_add(store, seg, with_absorbing(seg, False), jnp.array([1.0, 0.0]), jnp.ones(2, bool))
     np.testing.assert_array_equal(np.asarray(data.seg_a.absorbed[:2]), np.asarray(seg.absorbed))
     assert not np.asarray(data.seg_b.absorbed).any()  # plain segments: none
@@ -188,7 +188,7 @@ def test_training_learns_that_reaching_the_end_is_good(key):
     steps = jax.random.randint(k_len, (2, 64), 1, 6)  # real steps of each segment of 5
     xs = jax.random.uniform(k_x, (2, 64, 5), minval=-1, maxval=1)
     mask = jnp.arange(5)[None, None, :] < steps[..., None]
-    a, b = (AbsorbingSegments(*_seg(xs[i], mask[i]), ~mask[i] & (steps[i] < 5)[:, None]) for i in range(2))
+    a, b = (AbsorbingSegments(*_seg(xs[i], mask[i])[:4], ~mask[i] & (steps[i] < 5)[:, None]) for i in range(2))
     labels = jnp.where(steps[0] == steps[1], 0.5, (steps[0] < steps[1]).astype(jnp.float32))
     data = prefs_add(prefs_init(64, 5, 2, 2, absorbing=True), a, b, labels, jnp.ones(64, bool))
     state = reward_init(k_init, 2, 2, cfg, absorbing="single")
@@ -205,8 +205,8 @@ def test_absorbing_reward_stays_zero_where_no_segment_ended(key):
     k_init, k_x = jax.random.split(key)
     xs = jax.random.uniform(k_x, (2, 32, 4), minval=-0.2, maxval=0.2)
     mask = jnp.broadcast_to(jnp.array([True, False, False, False]), (32, 4))
-    pit = AbsorbingSegments(*_seg(xs[0] - 0.5, mask), ~mask)  # every one ends at x ≈ −0.5 and absorbs
-    alive = AbsorbingSegments(*_seg(xs[1]), jnp.zeros((32, 4), bool))
+    pit = AbsorbingSegments(*_seg(xs[0] - 0.5, mask)[:4], ~mask)  # every one ends at x ≈ −0.5 and absorbs
+    alive = AbsorbingSegments(*_seg(xs[1])[:4], jnp.zeros((32, 4), bool))
     data = prefs_add(prefs_init(32, 4, 2, 2, absorbing=True), pit, alive, jnp.zeros(32), jnp.ones(32, bool))
     state = reward_init(k_init, 2, 2, cfg, absorbing="terminal")
     state, _, acc = train_reward(state, data, key, cfg)

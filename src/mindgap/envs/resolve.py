@@ -81,7 +81,11 @@ def _import(target: str):
 def _entry(head: str) -> str:
     """``path.py:factory`` with the path made absolute (any process can import it again), or ``module:factory``."""
     target, _, factory = head.rpartition(":")
-    return f"{Path(target).resolve()}:{factory}" if target.endswith(".py") else head
+    if not target.endswith(".py"):
+        return head
+    if not Path(target).is_file():
+        raise EnvError(f"no such file: {target}")
+    return f"{Path(target).resolve()}:{factory}"
 
 
 def import_factory(entry: str, who: str | None = None):
