@@ -22,9 +22,10 @@ from ..data.demos import RatedDemonstrations
 from ..envs.coffee import ACTIONS, N_STATES, ROBOTS, make_coffee
 from ..envs.coffee_demos import SANITY
 from ..experiments import coffee
-from ..experiments._runfolder import job_summary, write_csv
+from ..experiments._runfolder import write_csv
 from ..feedback.ratings_file import ParticipantRatings, read_participant_ratings, write_participant_ratings
 from ..teachers.participants import POPULATIONS, QUESTIONS, recruit
+from .reproduce import finish
 
 
 def reproduce(args, shard) -> int:
@@ -39,17 +40,7 @@ def reproduce(args, shard) -> int:
     summary = coffee.run(
         cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard, assemble_only=args.assemble, only=only
     )
-    if only:
-        print(job_summary(summary["job"], out, only))
-        return 0
-    if summary is None:
-        print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
-        return 0
-    print(summary["table_md"])
-    if summary.get("missing_jobs"):
-        print(f"{summary['missing_jobs']} fits not run yet; rerun without --assemble to finish them")
-    print(f"results, ratings, demonstrations and figures in {out}/")
-    return 0
+    return finish(summary, out, args, "ratings, demonstrations and figures", unit="fits")
 
 
 def _simulated_person(args, study) -> tuple[ParticipantRatings, dict]:

@@ -105,6 +105,12 @@ def run(args) -> int:
     summary = table1.run(
         cfg, out, fresh=args.fresh, progress=not args.quiet, shard=shard_, assemble_only=args.assemble, only=args.job
     )
+    return finish(summary, out, args, "curves and figures")
+
+
+def finish(summary: dict | None, out: Path, args, outputs: str, unit: str = "jobs") -> int:
+    """What a sharded experiment (Table 1, the coffee study) prints at the end: the one job's record
+    (``--job``), that a shard is done, or the table, the ``unit`` still missing and where the outputs are."""
     if args.job:
         from ..experiments._runfolder import job_summary
 
@@ -115,8 +121,8 @@ def run(args) -> int:
         return 0
     print(summary["table_md"])
     if summary.get("missing_jobs"):
-        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
-    print(f"results, curves and figures in {out}/")
+        print(f"{summary['missing_jobs']} {unit} not run yet; rerun without --assemble to finish them")
+    print(f"results, {outputs} in {out}/")
     return 0
 
 
