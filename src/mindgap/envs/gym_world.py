@@ -13,7 +13,8 @@ MountainCarContinuous-v0, transcribed from gymnasium's ``classic_control`` sourc
 continuous lunar lander's (:func:`~mindgap.envs.lunar.lander_reward`; with the solar wind of
 :mod:`~mindgap.envs.lunar` too), and the MuJoCo hopper's and half-cheetah's where the observation
 holds the x position (:mod:`~mindgap.envs.mujoco_noise`, with or without its hidden noise). Other
-ids get no reward (SAC runs; PEBBLE/DRLHP's simulated person refuses). A gym world has no
+ids, and a user's own env from a file (:func:`user_gym_world`), get no reward function: SAC runs, and
+the ordinary simulated person (``--teacher true``) sums the rewards the env returned. A gym world has no
 exact ``log_prob``: a biased person's belief is learned from a variant of the env
 (:mod:`~mindgap.teachers.learned_belief`), and learners that need it refuse a gym world
 without one (:func:`refuse_without_dynamics`).
@@ -21,6 +22,7 @@ without one (:func:`refuse_without_dynamics`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import re
@@ -256,10 +258,8 @@ def user_gym_world(entry: str, who: str, factory, kwargs: dict, made, max_episod
     (:func:`~mindgap.teachers.preference.segment_scores`), as B-Pref's scripted teacher does.
     """
     declared = _declared_steps(made)
-    try:
+    with contextlib.suppress(Exception):  # the probe is only read; a close that fails changes nothing
         made.close()
-    except Exception:
-        pass
     if max_episode_steps is not None and (not isinstance(max_episode_steps, int) or max_episode_steps < 1):
         raise EnvError(f"{who}: max_episode_steps must be a positive integer")
     if not (declared or max_episode_steps):
