@@ -109,21 +109,14 @@ def run(args) -> int:
 
 
 def finish(summary: dict | None, out: Path, args, outputs: str, unit: str = "jobs") -> int:
-    """What a sharded experiment (Table 1, the coffee study) prints at the end: the one job's record
-    (``--job``), that a shard is done, or the table, the ``unit`` still missing and where the outputs are."""
-    if args.job:
-        from ..experiments._runfolder import job_summary
+    """What a sharded experiment (Table 1, the coffee study) prints at the end: that a shard is done,
+    else what every experiment prints (:func:`~mindgap.experiments._runfolder.print_run`)."""
+    from ..experiments._runfolder import print_run
 
-        print(job_summary(summary["job"], out, args.job))
-        return 0
     if summary is None:
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
         return 0
-    print(summary["table_md"])
-    if summary.get("missing_jobs"):
-        print(f"{summary['missing_jobs']} {unit} not run yet; rerun without --assemble to finish them")
-    print(f"results, {outputs} in {out}/")
-    return 0
+    return print_run(summary, out, args.job, outputs, unit)
 
 
 def shard(spec: str | None) -> tuple[int, int] | None:

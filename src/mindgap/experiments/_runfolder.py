@@ -140,10 +140,12 @@ class RunFolder:
         return record
 
 
-def print_run(summary: dict, out: Path, only: str | None, outputs: str = "curves and figures") -> int:
+def print_run(
+    summary: dict, out: Path, only: str | None, outputs: str = "curves and figures", unit: str = "jobs"
+) -> int:
     """What ``mindgap reproduce NAME`` prints at the end: the one job's numbers (``--job``), or the
-    table, each claim as held or not (the project's own checks marked), the jobs still missing and where the
-    outputs are. Returns 0."""
+    table, each claim as held or not (the project's own checks marked), the ``unit`` still missing and
+    where the outputs are. Returns 0."""
     if only:
         print(job_summary(summary["job"], out, only))
         return 0
@@ -152,7 +154,7 @@ def print_run(summary: dict, out: Path, only: str | None, outputs: str = "curves
         own = sourced(summary.get("experiment", ""), c)["kind"] == PROJECT  # not the dissertation's claim
         print(f"[{'ok' if c['held'] else 'not met'}] {'(project check) ' * own}{c['text']}: {c['measured']}")
     if summary.get("missing_jobs"):
-        print(f"{summary['missing_jobs']} jobs not run yet; rerun without --assemble to finish them")
+        print(f"{summary['missing_jobs']} {unit} not run yet; rerun without --assemble to finish them")
     print(f"results, {outputs} in {out}/")
     return 0
 
