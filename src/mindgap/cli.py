@@ -10,6 +10,7 @@ mindgap gerel --domain coffee [--robot R] [--ratings FILE] [--out DIR]
 mindgap worlds list|show|plan …            (terrain worlds; see mindgap.commands.worlds)
 mindgap design check WORLD …               (can a world show PrefBias's effect? see mindgap.commands.design)
 mindgap sac|pebble|drlhp --world W --out DIR …   (preference-based RL; see mindgap.commands.learn)
+mindgap NAME --world W --out DIR …   (a registered method with no command of its own; see mindgap.commands.method_command)
 mindgap prefbias --world W --out DIR …   (PrefBias, Algorithm 2; see mindgap.commands.prefbias)
 mindgap eps --world W --lam L --out DIR …   (EPS, Algorithm 3; see mindgap.commands.eps)
 mindgap study serve|check|links|export|examples …  (user studies in the browser; see mindgap.commands.study)
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from ._io import use_compilation_cache
@@ -30,7 +32,7 @@ from ._io import use_compilation_cache
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="mindgap", description="Learn what a person wants when they misjudge the robot.")
     sub = p.add_subparsers(dest="command", required=True)
-    from .commands import design, eps, gerel, learn, prefbias, report, reproduce, study, sweep, worlds
+    from .commands import design, eps, gerel, learn, method_command, prefbias, report, reproduce, study, sweep, worlds
 
     reproduce.add_parser(sub)
     worlds.add_parser(sub)
@@ -42,6 +44,7 @@ def _parser() -> argparse.ArgumentParser:
     report.add_parser(sub)
     sweep.add_parser(sub)
     gerel.add_parser(sub)
+    method_command.add_parsers(sub, taken=COMMANDS)  # a registered method with no command of its own
     return p
 
 
@@ -62,11 +65,29 @@ COMMANDS = {
 """Each subcommand's module in :mod:`mindgap.commands` (imported when it runs)."""
 
 
+METHODS_VARIABLE = "MINDGAP_METHODS"
+"""Files (``path.py``) or modules, comma-separated, imported before the commands are built: each
+registers methods of its own (:func:`mindgap.algorithms.methods.register`), which then have a command."""
+
+
+def _load_methods() -> None:
+    from .envs.resolve import import_module
+
+    for target in os.environ.get(METHODS_VARIABLE, "").split(","):
+        if target.strip():
+            import_module(target.strip())
+
+
 def main(argv: list[str] | None = None) -> int:
+    try:
+        _load_methods()
+    except ValueError as e:
+        print(f"mindgap: error: {METHODS_VARIABLE}: {e}", file=sys.stderr)
+        return 2
     args = _parser().parse_args(argv)
     use_compilation_cache()
     try:
-        module = importlib.import_module(f"mindgap.commands.{COMMANDS[args.command]}")
+        module = importlib.import_module(f"mindgap.commands.{COMMANDS.get(args.command, 'method_command')}")
         return module.run(args)
     except (ValueError, RuntimeError, FloatingPointError) as e:
         print(f"mindgap: error: {e}", file=sys.stderr)

@@ -53,10 +53,10 @@ from ..envs.gym_world import refuse_without_dynamics
 from ..envs.interface import Env, action_width, check_env
 from ..feedback.queries import select_queries
 from ..models.gaussian_dynamics import DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
-from ..models.reward_ensemble import RewardState, preference_probs, reward_init, train_reward
+from ..models.reward_ensemble import RewardState, ensemble_reward, preference_probs, reward_init, train_reward
 from ..teachers.expectation import ExpectationTeacher
 from ..teachers.host import HostTeacher
-from .engine import Learner, WorldArgs, run, run_record
+from .engine import Learner, WorldArgs, run_record
 from .eps_config import EPSConfig
 from .eps_reward import (
     EPSRewardParams,
@@ -66,6 +66,7 @@ from .eps_reward import (
     entropy_mean_from_replay,
     eps_absorbing,
     eps_reward,
+    eps_sac_config,
     normalised_u,
     policy_entropy_max,
     u_norm_from_replay,
@@ -88,17 +89,6 @@ def expectation_reward(params: EPSRewardParams, obs, act, next_obs) -> jax.Array
     return normalised_u(params, obs, act, next_obs)
 
 
-def _reward_fn(cfg: EPSConfig):
-    return eps_reward if cfg.method == "eps" else expectation_reward
-
-
-def _absorbing_fn(cfg: EPSConfig):
-    """What an absorbing step earns (``cfg.absorbing``): the λ-term's for EPS, the standardised u_H's for DRLHP."""
-    if cfg.absorbing is None:
-        return None
-    return eps_absorbing if cfg.method == "eps" else absorbing_u
-
-
 def u_params(model: EPSModel, person: ExpectationTeacher, cfg: EPSConfig):
     """What u_H is computed from: one seed's ensemble, or the person's own score (``cfg.surrogate``)."""
     if cfg.surrogate == "exact":
@@ -106,19 +96,20 @@ def u_params(model: EPSModel, person: ExpectationTeacher, cfg: EPSConfig):
     return model.reward.params
 
 
-def _fits_dynamics(cfg: EPSConfig) -> bool:
-    """Whether T_A is fitted and H_T is in the reward: EPS on a person who judges transitions."""
-    return cfg.method == "eps" and cfg.judged == "transitions"
+def judges_transitions(cfg: EPSConfig) -> bool:
+    """Whether EPS fits T_A and puts H_T in its reward: the person judges transitions, not decisions."""
+    return cfg.judged == "transitions"
 
 
-def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig) -> EPSRewardParams:
+def _reward_params(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig, dynamics: bool = True) -> EPSRewardParams:
+    """The reward's parameters; ``dynamics``: T_A enters them (EPS on a person who judges transitions)."""
     f = jnp.float32
     return EPSRewardParams(
         w.params,
         u_params(m, w.oracle, cfg),
         m.u_norm[0],
         m.u_norm[1],
-        m.dynamics if _fits_dynamics(cfg) else None,
+        m.dynamics if dynamics and judges_transitions(cfg) else None,
         jnp.asarray(cfg.dynamics.min_std, f),
         m.h_shift,
         jnp.asarray(1.0 / cfg.nats_per_unit, f),
@@ -141,11 +132,12 @@ def _init(key, env: Env, cfg: EPSConfig):
     return model, k_loop, k_run
 
 
-def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
-    """Lines 4–5 of Algorithm 3: refit T_A to the buffer D (afresh the first time), pick the queries."""
+def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig, fit_dynamics: bool = True):
+    """Lines 4–5 of Algorithm 3: refit T_A to the buffer D (afresh the first time, only with
+    ``fit_dynamics`` and a person who judges transitions), pick the queries."""
     key, k_dyn, k_fresh, k_q, k_t, k_r = jax.random.split(key, 6)
     dyn = m.dynamics
-    if _fits_dynamics(cfg):
+    if fit_dynamics and judges_transitions(cfg):
         valid = jnp.arange(buf.capacity) < buf.size
         n = n_actions(env) or None  # a discrete action enters T_A one-hot
         norm = fit_norm(buf.obs, buf.act, buf.next_obs, valid, act_width=n)
@@ -169,42 +161,98 @@ def _select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
     return m._replace(dynamics=dyn, started=jnp.ones((), bool)), seg_a, seg_b, (key, k_t, k_r)
 
 
-def _learn(m: EPSModel, prefs, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
-    """Line 7 and §4.3.3: fit u_H to every answer, standardise it over the buffer, set the λ-term's
-    constant (``cfg.offset``: a cost by default)."""
+def _fit_u(m: EPSModel, prefs, buf, key, w: WorldArgs, cfg: EPSConfig):
+    """Line 7 and §4.3.3: fit u_H to every answer and standardise it over the buffer."""
     loss, acc = jnp.zeros(()), jnp.ones(())
     if cfg.surrogate == "learned":
         rew, loss, acc = train_reward(m.reward, prefs, key, cfg.reward)
         m = m._replace(reward=rew)
     m = m._replace(u_norm=jnp.stack(u_norm_from_replay(u_params(m, w.oracle, cfg), buf)), h_shift=jnp.zeros(()))
-    if cfg.method == "eps" and cfg.offset == "centred":
-        m = m._replace(h_shift=entropy_mean_from_replay(_reward_params(m, w, env, cfg), buf))
-    elif cfg.method == "eps" and cfg.offset == "cost":  # the λ-term ≤ 0 on the buffer (eps_reward's docstring)
-        u_mean, h_shift = cost_offsets(_reward_params(m, w, env, cfg), buf, policy_entropy_max(env))
-        m = m._replace(u_norm=m.u_norm.at[0].set(u_mean), h_shift=h_shift)
     return m, (loss, acc)
 
 
+def _learn(m: EPSModel, prefs, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """:func:`_fit_u`, then the λ-term's constant (``cfg.offset``: a cost by default)."""
+    m, info = _fit_u(m, prefs, buf, key, w, cfg)
+    if cfg.offset == "centred":
+        m = m._replace(h_shift=entropy_mean_from_replay(_reward_params(m, w, env, cfg), buf))
+    elif cfg.offset == "cost":  # the λ-term ≤ 0 on the buffer (eps_reward's docstring)
+        u_mean, h_shift = cost_offsets(_reward_params(m, w, env, cfg), buf, policy_entropy_max(env))
+        m = m._replace(u_norm=m.u_norm.at[0].set(u_mean), h_shift=h_shift)
+    return m, info
+
+
 def _reward(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig):
-    """Line 10: r_A + λ(u_H + H_T) for EPS, the standardised u_H alone for DRLHP (and the absorbing
-    steps' value with ``cfg.absorbing``)."""
-    return _reward_fn(cfg), _reward_params(m, w, env, cfg), _absorbing_fn(cfg)
+    """Line 10: r_A + λ(u_H + H_T) (and, with ``cfg.absorbing``, the λ-term of an absorbing step)."""
+    return eps_reward, _reward_params(m, w, env, cfg), eps_absorbing if cfg.absorbing is not None else None
+
+
+def _drlhp_select(m: EPSModel, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """The queries of :func:`_select`; DRLHP fits no T_A."""
+    return _select(m, buf, key, w, env, cfg, fit_dynamics=False)
+
+
+def _drlhp_learn(m: EPSModel, prefs, buf, key, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """u_H fitted and standardised (:func:`_fit_u`); DRLHP's reward has no λ-term to offset."""
+    return _fit_u(m, prefs, buf, key, w, cfg)
+
+
+def _drlhp_reward(m: EPSModel, w: WorldArgs, env: Env, cfg: EPSConfig):
+    """The standardised u_H alone (and its absorbing states' value with ``cfg.absorbing``)."""
+    params = _reward_params(m, w, env, cfg, dynamics=False)
+    return expectation_reward, params, absorbing_u if cfg.absorbing is not None else None
+
+
+def learned_reward(m: EPSModel):
+    """What the ensemble learned, as ``(reward_fn, params)``: u_H's members' mean, unstandardised."""
+    return ensemble_reward, m.reward.params
 
 
 def _where(cond, a, b):
     return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-LEARNER = Learner(
+EPS_LEARNER = Learner(
     _init,
     _select,
     _learn,
     _reward,
     absorbing=lambda cfg: cfg.absorbing is not None,
-    agent_sac=lambda cfg: cfg.agent_sac(),
+    agent_sac=lambda cfg: eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit),
     asks=lambda cfg: cfg.surrogate == "learned",
 )
-"""EPS (Algorithm 3) and expectation-DRLHP as a :class:`~mindgap.algorithms.engine.Learner`."""
+"""EPS (Algorithm 3) as a :class:`~mindgap.algorithms.engine.Learner`: SAC's α is λ/s_H (Eq. 4.6's H_π)."""
+
+DRLHP_LEARNER = Learner(
+    _init,
+    _drlhp_select,
+    _drlhp_learn,
+    _drlhp_reward,
+    absorbing=lambda cfg: cfg.absorbing is not None,
+    agent_sac=lambda cfg: cfg.sac,
+    asks=lambda cfg: cfg.surrogate == "learned",
+)
+"""Expectation-DRLHP (§4.4.1.1) as a :class:`~mindgap.algorithms.engine.Learner`: the same answers and
+ensemble, the agent on the standardised u_H alone with SAC's α tuned as configured."""
+
+
+def prepare(world, cfg: EPSConfig, seeds: int, person, person_name: str = "biased"):
+    """The engine's ``(teacher, meta, oracle)`` for :func:`~mindgap.algorithms.engine.run`: a simulated
+    person answers inside the program and is u_H's oracle (the exact surrogate reads it); people
+    through a host teacher answer outside it."""
+    refuse_without_dynamics(world, "EPS")
+    check_env(world.env, density=True, who="EPS", discrete_actions=True)
+    host = not hasattr(person, "answer")  # a jittable person (one or a crowd) answers inside the program
+    if host and cfg.surrogate == "exact":
+        raise ValueError("the exact surrogate reads a simulated person's models; people cannot supply them")
+    if host:
+        meta = run_record(world, seeds, teacher=f"expectation:{person.name}", config=cfg.as_dict())
+        return person, meta, None
+    meta = run_record(
+        world, seeds, teacher=f"expectation:{person_name}", person_hash=fingerprint(person), config=cfg.as_dict()
+    )
+    teacher = dataclasses.replace(person, cfg=cfg.teacher)
+    return teacher, meta, teacher
 
 
 def train(
@@ -230,18 +278,10 @@ def train(
         the dict of :func:`mindgap.algorithms.engine.run` (``curve``, ``final_returns``,
         ``paths``, ``config``, ``carry``).
     """
+    from . import methods
+
     cfg.check()
-    refuse_without_dynamics(world, "EPS")
-    check_env(world.env, density=True, who="EPS", discrete_actions=True)
-    host = not hasattr(person, "answer")  # a jittable person (one or a crowd) answers inside the program
-    if host and cfg.surrogate == "exact":
-        raise ValueError("the exact surrogate reads a simulated person's models; people cannot supply them")
-    if host:
-        meta = run_record(world, seeds, teacher=f"expectation:{person.name}", config=cfg.as_dict())
-        teacher, oracle = person, None
-    else:
-        meta = run_record(
-            world, seeds, teacher=f"expectation:{person_name}", person_hash=fingerprint(person), config=cfg.as_dict()
-        )
-        teacher = oracle = dataclasses.replace(person, cfg=cfg.teacher)
-    return run(world, LEARNER, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle)
+    m = methods.for_config(cfg)
+    return methods.train(
+        m, world, cfg, seeds, out=out, progress=progress, fresh=fresh, person=person, person_name=person_name
+    )

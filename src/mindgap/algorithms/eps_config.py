@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..feedback.queries import SAMPLERS
+from ..feedback.queries import check_sampler
 from ..models.gaussian_dynamics import DynamicsConfig
 from ..models.reward_ensemble import ABSORBING_STATES, RewardConfig
 from .engine import FAST_SCHEDULE, Schedule
@@ -91,8 +91,7 @@ class EPSConfig(Schedule):
             raise ValueError(f"judged must be one of {', '.join(JUDGED)}, got {self.judged!r}")
         if self.absorbing is not None and self.absorbing not in ABSORBING_STATES:
             raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)} or None, got {self.absorbing!r}")
-        if self.sampler not in SAMPLERS:
-            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        check_sampler(self.sampler, belief=False)
         if self.lam < 0:
             raise ValueError(f"λ must be non-negative, got {self.lam}")
         if not self.nats_per_unit > 0:

@@ -29,7 +29,7 @@ import jax
 
 from ..envs.gym_world import NO_BELIEF, GymWorld
 from ..envs.interface import Env, action_width
-from ..feedback.queries import SAMPLERS, select_queries
+from ..feedback.queries import check_sampler, select_queries
 from ..models.reward_ensemble import (
     ABSORBING_STATES,
     RewardConfig,
@@ -42,7 +42,7 @@ from ..models.reward_ensemble import (
 )
 from ..teachers.host import HostTeacher
 from .engine import FAST_SCHEDULE as FAST_SCHEDULE
-from .engine import Learner, Schedule, preference_teacher, run
+from .engine import Learner, Schedule, preference_teacher
 
 METHODS = ("sac", "pebble", "drlhp")
 ABSORBING_DEFAULT = {"sac": False, "pebble": True, "drlhp": False}
@@ -70,8 +70,7 @@ class PbRLConfig(Schedule):
     def check(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown method {self.method!r}: choose from {', '.join(METHODS)}")
-        if self.sampler not in SAMPLERS:
-            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        check_sampler(self.sampler, belief=False)
         self.check_schedule()
         if self.method != "sac" and (self.queries < 1 or self.per_round < 1):
             raise ValueError("queries and per_round must be at least 1")
@@ -149,14 +148,44 @@ def _learn(model: RewardState, prefs, replay, key, w, env, cfg: PbRLConfig):
 
 
 def _reward(model: RewardState, w, env, cfg: PbRLConfig):
-    """The ensemble's mean (and its absorbing states' reward); the world's own reward for the oracle."""
-    if cfg.method == "sac":
-        return None, model.params, None
+    """The ensemble's mean (and its absorbing states' reward)."""
     return ensemble_reward, model.params, cfg.absorbing_fn()
 
 
-LEARNER = Learner(_init, _select, _learn, _reward, absorbing=lambda cfg: cfg.absorbing)
-"""PEBBLE, DRLHP and the oracle as one :class:`~mindgap.algorithms.engine.Learner` (``cfg.method`` picks)."""
+def learned_reward(model: RewardState):
+    """What the ensemble learned, as ``(reward_fn, params)``: its members' mean."""
+    return ensemble_reward, model.params
+
+
+def _oracle_init(key, env: Env, cfg: PbRLConfig):
+    k_loop, _, k_run = jax.random.split(key, 3)  # the learners' split, so seeds draw alike
+    return (), k_loop, k_run
+
+
+def _ask_nothing(model, replay, key, w, env, cfg):
+    raise AssertionError("the oracle asks nobody, so the engine never runs its feedback rounds")
+
+
+def _oracle_reward(model, w, env, cfg: PbRLConfig):
+    """The world's own reward."""
+    return None, model, None
+
+
+REWARD_LEARNER = Learner(_init, _select, _learn, _reward, absorbing=lambda cfg: cfg.absorbing)
+"""PEBBLE and DRLHP as one :class:`~mindgap.algorithms.engine.Learner`: both fit the reward
+ensemble to preferences and differ only in their schedule (PEBBLE's pre-training and critic reset)."""
+
+ORACLE_LEARNER = Learner(_oracle_init, _ask_nothing, _ask_nothing, _oracle_reward, asks=lambda cfg: False)
+"""SAC on the world's own reward: no model, no queries."""
+
+
+def prepare(world, cfg: PbRLConfig, seeds: int, teacher: str | HostTeacher = "true", belief: str | None = None):
+    """The person who answers (None for the oracle), the run record, and no oracle of u_H:
+    the engine's ``(teacher, meta, oracle)`` for :func:`~mindgap.algorithms.engine.run`."""
+    if isinstance(world, GymWorld) and cfg.method != "sac" and teacher == "biased" and world.env.log_prob is None:
+        raise ValueError(f"the biased teacher needs {NO_BELIEF}, or use --teacher true")
+    person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who=cfg.method)
+    return (None if cfg.method == "sac" else person), meta, None
 
 
 def train(
@@ -183,10 +212,8 @@ def train(
         the dict of :func:`mindgap.algorithms.engine.run`: ``curve`` (rows of seed, step,
         return, queries), ``final_returns`` [seeds, episodes], ``paths``, ``config``, ``carry``.
     """
+    from . import methods
+
     cfg.check()
-    if isinstance(world, GymWorld) and cfg.method != "sac" and teacher == "biased" and world.env.log_prob is None:
-        raise ValueError(f"the biased teacher needs {NO_BELIEF}, or use --teacher true")
-    person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who=cfg.method)
-    if cfg.method == "sac":
-        person = None
-    return run(world, LEARNER, cfg, person, meta, seeds, out=out, progress=progress, fresh=fresh)
+    m = methods.for_config(cfg)
+    return methods.train(m, world, cfg, seeds, out=out, progress=progress, fresh=fresh, teacher=teacher, belief=belief)

@@ -36,12 +36,13 @@ import jax.numpy as jnp
 
 from ..envs.gym_world import refuse_without_dynamics
 from ..envs.interface import Env, check_env
+from ..feedback.queries import check_sampler
 from ..models.gaussian_dynamics import DynamicsConfig, DynamicsModel, Norm, dynamics_init, fit_norm, train_dynamics
 from ..models.prefbias_nets import absorbing_value, posterior_reward
 from ..teachers.host import HostTeacher
-from .engine import FAST_SCHEDULE, Learner, Schedule, preference_teacher, run
+from .engine import FAST_SCHEDULE, Learner, Schedule, preference_teacher
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, fit, prefbias_init, with_dynamics
-from .prefbias_queries import SAMPLERS, select_queries
+from .prefbias_queries import select_queries
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,8 +85,7 @@ class PrefBiasLoopConfig(Schedule):
     def check(self) -> None:
         if self.method != "prefbias":
             raise ValueError(f"method must be 'prefbias', got {self.method!r}")
-        if self.sampler not in SAMPLERS:
-            raise ValueError(f"unknown sampler {self.sampler!r}: choose from {', '.join(SAMPLERS)}")
+        check_sampler(self.sampler, belief=True)
         self.prefbias.check()
         self.check_schedule()
         if self.queries < 1 or self.per_round < 1 or self.candidates < 1:
@@ -189,6 +189,21 @@ LEARNER = Learner(_init, _select, _learn, _reward, absorbing=lambda cfg: cfg.pre
 """PrefBias (Algorithm 2) as a :class:`~mindgap.algorithms.engine.Learner`."""
 
 
+def learned_reward(m: PrefBiasModel):
+    """What PrefBias learned, as ``(reward_fn, params)``: r_w at its posterior mean."""
+    return posterior_reward, m.posterior.reward.mean
+
+
+def prepare(
+    world, cfg: PrefBiasLoopConfig, seeds: int, teacher: str | HostTeacher = "biased", belief: str | None = None
+):
+    """The engine's ``(teacher, meta, oracle)`` for :func:`~mindgap.algorithms.engine.run` (no oracle)."""
+    refuse_without_dynamics(world, "PrefBias")
+    person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who="PrefBias")
+    check_env(world.env, density=True, who="PrefBias")
+    return person, meta, None
+
+
 def train(
     world,
     cfg: PrefBiasLoopConfig,
@@ -211,8 +226,8 @@ def train(
         ``paths``, ``config``, ``carry``); on a terrain world,
         :func:`~mindgap.planning.terrain_maps.noise_maps` draws the learned belief from ``carry``.
     """
-    cfg.check()
-    refuse_without_dynamics(world, "PrefBias")
-    person, meta = preference_teacher(world, cfg, seeds, teacher, belief, who="PrefBias")
-    check_env(world.env, density=True, who="PrefBias")
-    return run(world, LEARNER, cfg, person, meta, seeds, out=out, progress=progress, fresh=fresh)
+    from . import methods
+
+    return methods.train(
+        methods.PREFBIAS, world, cfg, seeds, out=out, progress=progress, fresh=fresh, teacher=teacher, belief=belief
+    )

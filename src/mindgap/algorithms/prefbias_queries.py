@@ -1,4 +1,5 @@
-"""Choosing queries for PrefBias (§3.3.3.3): the engine's three samplers and preference disagreement.
+"""Choosing queries for PrefBias (§3.3.3.3): what its posterior says to the samplers of
+:mod:`~mindgap.feedback.queries`.
 
 Draw ``candidates × K`` random pairs of segments and keep the K that score highest:
 
@@ -11,8 +12,8 @@ Draw ``candidates × K`` random pairs of segments and keep the K that score high
   the person as currently modelled (f_φ), both with the posterior-mean reward and weights.
   Pairs where the two differ most are the most informative about the belief.
 
-The first three reuse :func:`~mindgap.feedback.queries.query_scores` on the posterior
-draws, which play the role of the reward ensemble's members.
+The posterior draws play the role of the reward ensemble's members
+(:class:`~mindgap.feedback.queries.QueryModel`).
 """
 
 from __future__ import annotations
@@ -22,12 +23,11 @@ import jax.numpy as jnp
 
 from ..data.replay import Replay
 from ..data.segments import Segments
-from ..feedback.queries import candidate_pairs, keep_best, query_scores
+from ..feedback.queries import SAMPLERS as SAMPLERS  # the one registry of samplers, re-exported
+from ..feedback.queries import QueryModel, select_pairs
 from ..models.bayes import sample_params
 from ..models.gaussian_dynamics import DynamicsModel
 from .prefbias_inference import PrefBiasConfig, PrefBiasState, preference_prob
-
-SAMPLERS = ("uniform", "disagreement", "entropy", "preference_disagreement")
 
 
 def posterior_preferences(state: PrefBiasState, seg_a: Segments, seg_b: Segments, key: jax.Array, samples: int, cfg):
@@ -60,6 +60,15 @@ def preference_disagreement(
     return bernoulli_kl(p_agent, p_person)
 
 
+def query_model(state: PrefBiasState, dynamics: DynamicsModel, key: jax.Array, samples: int, cfg) -> QueryModel:
+    """What PrefBias says about candidate pairs: its posterior draws' P(a ≻ b) (``samples`` joint
+    draws with ``key``) and :func:`preference_disagreement`."""
+    return QueryModel(
+        lambda seg_a, seg_b: posterior_preferences(state, seg_a, seg_b, key, samples, cfg),
+        lambda seg_a, seg_b: preference_disagreement(state, dynamics, seg_a, seg_b, cfg),
+    )
+
+
 def candidate_scores(
     state: PrefBiasState,
     dynamics: DynamicsModel,
@@ -70,14 +79,13 @@ def candidate_scores(
     cfg: PrefBiasConfig,
     samples: int = 8,
 ) -> jax.Array:
-    """Score M candidate pairs with ``sampler`` (higher is asked first): [M]."""
-    if sampler == "preference_disagreement":
-        return preference_disagreement(state, dynamics, seg_a, seg_b, cfg)
-    if sampler in ("disagreement", "entropy"):
-        return query_scores(posterior_preferences(state, seg_a, seg_b, key, samples, cfg), sampler)
-    if sampler == "uniform":
+    """Score M candidate pairs with ``sampler`` (higher is asked first; ``uniform``: in order): [M]."""
+    if sampler not in SAMPLERS:
+        raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
+    score = SAMPLERS[sampler].score
+    if score is None:
         return -jnp.arange(seg_a.mask.shape[0], dtype=jnp.float32)
-    raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
+    return score(query_model(state, dynamics, key, samples, cfg), seg_a, seg_b)
 
 
 def select_queries(
@@ -93,7 +101,8 @@ def select_queries(
     samples: int = 8,
     from_start: bool = False,
 ) -> tuple[Segments, Segments]:
-    """K pairs of segments to show the person, the best K of ``candidates × K`` random pairs.
+    """K pairs of segments to show the person, the best K of ``candidates × K`` random pairs
+    (:func:`~mindgap.feedback.queries.select_pairs` with :func:`query_model`).
 
     Jittable with ``k, length, sampler, cfg, candidates, samples, from_start`` static; ``from_start``:
     segments start at episodes' first steps (``Schedule.queries_from``).
@@ -102,11 +111,6 @@ def select_queries(
         (seg_a, seg_b), each [K, L, ·]: :class:`~mindgap.data.segments.AbsorbingSegments`
         when ``cfg.absorbing``, else plain segments.
     """
-    if sampler not in SAMPLERS:
-        raise ValueError(f"unknown sampler {sampler!r}: choose from {', '.join(SAMPLERS)}")
     ka, kb, ks = jax.random.split(key, 3)
-    m = k * (1 if sampler == "uniform" else candidates)
-    seg_a, seg_b = candidate_pairs(ka, kb, buf, m, length, cfg.absorbing, from_start)
-    if sampler == "uniform":
-        return seg_a, seg_b
-    return keep_best(seg_a, seg_b, candidate_scores(state, dynamics, seg_a, seg_b, ks, sampler, cfg, samples), k)
+    model = query_model(state, dynamics, ks, samples, cfg)
+    return select_pairs(ka, kb, buf, model, k, length, sampler, candidates, cfg.absorbing, from_start)

@@ -16,8 +16,11 @@ from __future__ import annotations
 
 import argparse
 
-from ..feedback.queries import SAMPLERS
+from ..algorithms.eps_config import eps_config
+from ..feedback.queries import sampler_names
+from .config_flags import add_config_flags, with_flags
 from .learn import (
+    RUN_FIELDS,
     add_belief_env_flag,
     add_env_flag,
     add_person_flags,
@@ -47,7 +50,9 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--queries", type=int, help="query budget (default 800)")
     p.add_argument("--per-round", type=int, help="queries per feedback round (default 80)")
-    p.add_argument("--sampler", default="disagreement", help=f"{', '.join(SAMPLERS)} (default disagreement)")
+    p.add_argument(
+        "--sampler", default="disagreement", help=f"{', '.join(sampler_names(belief=False))} (default disagreement)"
+    )
     add_queries_from_flag(p)
     add_person_flags(p)
     p.add_argument(
@@ -88,6 +93,8 @@ def add_parser(sub) -> None:
     )
     add_run_flags(p)
     p.set_defaults(steps=None, hidden=None, learning_starts=None, batch=None)  # the preset's unless given
+    hand = ("lam", "sampler", "queries_from", "offset", "absorbing", "judged", "surrogate", "queries", "per_round")
+    add_config_flags(p, eps_config("full"), skip=RUN_FIELDS + hand + ("nats_per_unit",))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -98,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     from .. import rng
     from .._io import atomic_write
     from ..algorithms.eps import train
-    from ..algorithms.eps_config import EPSConfig, eps_config
+    from ..algorithms.eps_config import EPSConfig
     from ..algorithms.eps_maps import surrogate_maps
     from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
     from ..algorithms.explicability import explicability_scores
@@ -142,7 +149,8 @@ def run(args: argparse.Namespace) -> int:
     for name in ("queries", "per_round", "nats_per_unit"):
         if getattr(args, name) is not None:
             over[name] = getattr(args, name)
-    cfg = eps_config(preset, **over)
+    cfg = with_flags(eps_config(preset, **over), args)
+    cfg.check()
     if args.teacher is not None:
         return _run_with_people(args, world, cfg, train, write_outputs)
     policy_cfg = ExpectedPolicyConfig.fast() if args.fast else ExpectedPolicyConfig()

@@ -13,9 +13,31 @@ import json
 from pathlib import Path
 
 from ..algorithms.engine import QUERIES_FROM, Schedule
-from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS
+from ..algorithms.pbrl import ABSORBING_DEFAULT, METHODS, method_config
 from ..algorithms.sac import SACConfig
+from ..feedback.queries import sampler_names
+from ..sweeps.grid import SAC_FIELDS
 from ..teachers.preference import TeacherConfig
+from .config_flags import add_config_flags, with_flags
+
+RUN_FIELDS = ("method", "total_steps", "seed", "teacher.beta", "teacher.mistake") + tuple(
+    "sac." + f
+    for f in (
+        "hidden",
+        "learning_starts",
+        "utd",
+        "batch_size",
+        "n_step",
+        "reward_scale",
+        "noise_color",
+        "entropy_bonus",
+    )
+)
+"""The config fields that :func:`add_run_flags` and :func:`add_person_flags` set (``--steps``, ``--batch``, ``--beta``…):
+the derived flags (:mod:`~.config_flags`) leave them out."""
+
+FEEDBACK_FIELDS = ("queries", "per_round", "sampler", "queries_from", "absorbing", "absorbing_state")
+"""The fields PEBBLE's and DRLHP's hand-made flags set."""
 
 
 def add_parsers(sub) -> None:
@@ -47,7 +69,7 @@ def add_parsers(sub) -> None:
             add_belief_env_flag(p)
             p.add_argument("--queries", type=int, help="query budget (default 800)")
             p.add_argument("--per-round", type=int, help="queries per feedback round (default 50)")
-            p.add_argument("--sampler", default="disagreement", help="uniform, disagreement or entropy")
+            p.add_argument("--sampler", default="disagreement", help=", ".join(sampler_names(belief=False)))
             add_queries_from_flag(p)
             add_person_flags(p)
             p.add_argument(
@@ -69,6 +91,8 @@ def add_parsers(sub) -> None:
         )
         add_run_flags(p)
         p.set_defaults(steps=None, hidden=None, learning_starts=None, batch=None)  # the preset's unless given
+        only = SAC_FIELDS if method == "sac" else ()  # the oracle asks nobody: no feedback settings
+        add_config_flags(p, method_config(method), skip=RUN_FIELDS + FEEDBACK_FIELDS, only=only)
 
 
 ENV_HELP = (
@@ -279,7 +303,8 @@ def run(args: argparse.Namespace) -> int:
         host = StudyTeacher(teacher[len("study:") :], world, timeout=args.answer_timeout, progress=not args.quiet)
     elif teacher not in ("biased", "unbiased", "true"):
         raise ValueError(f"--teacher must be biased, unbiased, true or study:STORE, got {teacher!r}")
-    cfg = preset(args.command, **over)
+    cfg = with_flags(preset(args.command, **over), args)
+    cfg.check()
     res = train(
         world,
         cfg,

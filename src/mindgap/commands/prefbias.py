@@ -14,7 +14,9 @@ import argparse
 from ..algorithms.prefbias import PrefBiasLoopConfig
 from ..algorithms.prefbias_inference import PrefBiasConfig
 from ..algorithms.prefbias_queries import SAMPLERS
+from .config_flags import add_config_flags, with_flags
 from .learn import (
+    RUN_FIELDS,
     add_belief_env_flag,
     add_env_flag,
     add_person_flags,
@@ -78,6 +80,10 @@ def add_parser(sub) -> None:
     )
     add_run_flags(p, steps=PrefBiasLoopConfig.total_steps)
     p.set_defaults(steps=None, hidden=None, learning_starts=None, batch=None)  # the preset's unless given
+    hand = ("queries", "per_round", "sampler", "queries_from", "explore_steps") + tuple(
+        "prefbias." + f for f in ("belief_prior", "absorbing", "absorbing_state", "stay_head")
+    )
+    add_config_flags(p, PrefBiasLoopConfig(), skip=RUN_FIELDS + hand)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -117,7 +123,8 @@ def run(args: argparse.Namespace) -> int:
     for name, flag in (("queries", "queries"), ("per_round", "per_round"), ("explore_steps", "explore_steps")):
         if getattr(args, flag) is not None:
             over[name] = getattr(args, flag)
-    cfg = prefbias_config(preset, **over)
+    cfg = with_flags(prefbias_config(preset, **over), args)
+    cfg.check()
     teacher, host = args.teacher, None
     if teacher.startswith("study:"):
         from ..study.live import StudyTeacher

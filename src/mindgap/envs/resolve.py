@@ -56,6 +56,11 @@ def _value(v: str):
     return v
 
 
+def import_module(target: str):
+    """A module from a ``.py`` path or a dotted name (:class:`~mindgap.envs.interface.EnvError` if it cannot be imported)."""
+    return _import(target)
+
+
 def _import(target: str):
     """A module from a ``.py`` path or a dotted name."""
     if target.endswith(".py"):
@@ -63,6 +68,8 @@ def _import(target: str):
         if not path.is_file():
             raise EnvError(f"no such file: {target}")
         name = f"mindgap_user_env_{abs(hash(str(path.resolve())))}"
+        if name in sys.modules:  # imported once per process, as any module
+            return sys.modules[name]
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module

@@ -26,11 +26,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .._io import atomic_write
-from ..algorithms import pbrl
-from ..algorithms import prefbias as prefbias_alg
+from ..algorithms import methods, pbrl
 from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
-from ..models.prefbias_nets import posterior_reward
-from ..models.reward_ensemble import RewardConfig, ensemble_reward
+from ..models.reward_ensemble import RewardConfig
 from ..planning.terrain_maps import noise_maps, stay_maps, table_noise_map, table_stay_map
 from . import registry
 from ._runfolder import RunFolder
@@ -275,12 +273,8 @@ def learned_noise(res: dict, world, cfg: PrefBiasLoopConfig) -> tuple[np.ndarray
 def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: bool) -> dict:
     """Train every seed of one learner (vmapped, checkpointed in ``out``) and measure it."""
     kw = dict(seeds=seeds, out=out, progress=progress, fresh=fresh)
-    if job.method == "prefbias":
-        res = prefbias_alg.train(world, job.cfg, teacher=teacher_of(job), **kw)
-        fn, params = posterior_reward, res["carry"].model.posterior.reward.mean
-    else:
-        res = pbrl.train(world, job.cfg, teacher=teacher_of(job), **kw)
-        fn, params = ensemble_reward, res["carry"].model.params
+    res = methods.train(job.method, world, job.cfg, teacher=teacher_of(job), **kw)
+    learned = methods.learned_reward(job.method, res["carry"])
     final = np.asarray(res["final_returns"], np.float64)
     if not np.all(np.isfinite(final)):
         raise FloatingPointError(f"{job.key}: non-finite returns; the run diverged")
@@ -291,7 +285,7 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
         "final_episodes": int(final.shape[1]),
         "paths": [[np.round(np.asarray(p, np.float64), 4).tolist() for p in seed] for seed in res["paths"]],
         "routes": [route_of(world, paths) for paths in res["paths"]],
-        "reward_error": None if job.method == "sac" else reward_error(world, fn, params).tolist(),
+        "reward_error": None if learned is None else reward_error(world, *learned).tolist(),
     }
     if job.method == "prefbias" and has_map(world):
         person = np.asarray(table_noise_map(world.belief()))

@@ -47,13 +47,10 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-from ..algorithms import pbrl
-from ..algorithms import prefbias as prefbias_alg
+from ..algorithms import methods, pbrl
 from ..envs.gym_world import GymWorld, gym_world_from_spec
 from ..envs.interface import EnvError
 from ..envs.resolve import resolve_env
-from ..models.prefbias_nets import posterior_reward
-from ..models.reward_ensemble import ensemble_reward
 from ..plotting.learning import save_learning_curves
 from ..plotting.paths import save_paths
 from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, with_learned_belief
@@ -340,13 +337,9 @@ def compute_job(folder, job: pc.Job, seeds: int, *, cfg: GymConfig, fresh: bool,
         return {**_record(res, job, seeds), "env": level_world.name, **_draw(folder, job, level_world, res)}
     res = _train(world, job, seeds, **_kw(folder, job, fresh, progress))
     rec = _record(res, job, seeds)
-    if job.method != "sac":
-        fn, params = (
-            (posterior_reward, res["carry"].model.posterior.reward.mean)
-            if job.method == "prefbias"
-            else (ensemble_reward, res["carry"].model.params)
-        )
-        rec["reward_error"] = reward_error(world, cfg, fn, params).tolist()
+    learned = methods.learned_reward(job.method, res["carry"])
+    if learned is not None:
+        rec["reward_error"] = reward_error(world, cfg, *learned).tolist()
     if belief is not None:
         rec["belief_model"] = {k: v for k, v in belief.items() if k != "config"}
     draw = world if isinstance(world, GymWorld) else gym_world_from_spec(_spec(domain(job.world).draw, cfg.horizon))
@@ -358,9 +351,7 @@ def _kw(folder, job, fresh, progress) -> dict:
 
 
 def _train(world, job: pc.Job, seeds: int, **kw) -> dict:
-    if job.method == "prefbias":
-        return prefbias_alg.train(world, job.cfg, seeds=seeds, teacher=pc.teacher_of(job), **kw)
-    return pbrl.train(world, job.cfg, seeds=seeds, teacher=pc.teacher_of(job), **kw)
+    return methods.train(job.method, world, job.cfg, seeds, teacher=pc.teacher_of(job), **kw)
 
 
 PATH_EPISODES = 2

@@ -33,7 +33,7 @@ class SamplingConfig:
 
     worlds: tuple[str, ...] = ("nav1",)
     """Named worlds or world files (each needs a belief)."""
-    samplers: tuple[str, ...] = SAMPLERS
+    samplers: tuple[str, ...] = tuple(SAMPLERS)
     queries: int = 800
     seeds: int = 10
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))

@@ -20,11 +20,24 @@ from pathlib import Path
 
 import numpy as np
 
+from ..algorithms import methods as registry
 from ..experiments import prefbias_common as pc
 from ..experiments._runfolder import RunFolder, write_csv
 
 METHODS = ("sac", "pebble", "drlhp", "prefbias")
-"""The learners a grid runs: SAC on the true reward, PEBBLE, DRLHP (:mod:`~mindgap.algorithms.pbrl`), PrefBias."""
+"""The built-in learners a grid runs: SAC on the true reward, PEBBLE, DRLHP (:mod:`~mindgap.algorithms.pbrl`),
+PrefBias; :func:`grid_methods` adds every registered method that learns from preferences."""
+
+SHARED = ("total_steps", "chunk", "eval_every", "eval_episodes", "sac", "seed", "teacher", "queries", "per_round",
+          "feedback_every", "segment")  # fmt: skip
+"""The schedule a registered method takes from the grid's PEBBLE, so that all of a grid's learners share it."""
+
+
+def grid_methods() -> tuple[str, ...]:
+    """The learners a grid can run: :data:`METHODS` and every registered method that learns from preferences
+    (:mod:`mindgap.algorithms.methods`)."""
+    extra = [m.name for m in registry.METHODS.values() if m.answers == "preferences" and m.name not in METHODS]
+    return METHODS + tuple(extra)
 
 
 @dataclass(frozen=True)
@@ -32,7 +45,7 @@ class GridConfig:
     """A grid sweep (its run folder's ``config.json``)."""
 
     methods: tuple[str, ...]
-    """Learners, from :data:`METHODS`."""
+    """Learners, from :func:`grid_methods`."""
     worlds: tuple[str, ...]
     """Named worlds, world files or ``path.py:factory`` specs (with a belief and an exact density)."""
     preset: str = "fast"
@@ -50,12 +63,17 @@ class GridConfig:
 def base_configs(preset: str) -> dict:
     """Each method's configuration under ``preset`` (one schedule for all, as :func:`~.prefbias_common.learners`)."""
     learn = pc.learners(preset)
-    return {
+    out = {
         "sac": learn.sac,
         "pebble": learn.pebble,
         "drlhp": dataclasses.replace(learn.pebble, method="drlhp", explore_steps=0, reset_critic=False),
         "prefbias": learn.prefbias,
     }
+    for name in grid_methods()[len(METHODS) :]:
+        m = registry.get(name)
+        fields = {f.name for f in dataclasses.fields(m.config)}
+        out[name] = m.preset(preset, **{k: getattr(learn.pebble, k) for k in SHARED if k in fields})
+    return out
 
 
 SAC_FIELDS = ("total_steps", "chunk", "eval_every", "eval_episodes", "sac")

@@ -214,8 +214,9 @@ def _grid(entry, where: str, fail, single: bool) -> Part:
             fail(f"{where}.{key}", "missing")
     methods = _strings(entry, "methods", f"{where}.methods", fail)
     for j, m in enumerate(methods):
-        if m not in sweep_grid.METHODS:
-            fail(f"{where}.methods[{j}]", f"unknown method {m!r}: choose from {', '.join(sweep_grid.METHODS)}")
+        if m not in sweep_grid.grid_methods():
+            names = ", ".join(sweep_grid.grid_methods())
+            fail(f"{where}.methods[{j}]", f"unknown method {m!r}: choose from {names}")
     preset = entry.get("preset", "fast")
     if preset not in PRESETS:
         fail(f"{where}.preset", f"unknown preset {preset!r}: choose from {', '.join(PRESETS)}")
