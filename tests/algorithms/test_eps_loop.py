@@ -23,6 +23,13 @@ def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
     assert cfg.agent_sac().alpha == pytest.approx(2.5 / cfg.nats_per_unit)  # λ H_π / s_H: SAC's own α (reward scale 1)
     assert eps_config("fast", lam=2.5, nats_per_unit=1.0).agent_sac().alpha == pytest.approx(2.5)
     assert eps_config("fast", method="drlhp").agent_sac().alpha is None  # the baseline tunes α
+    # policy_entropy "sac": SAC's own tuned α plus λ/s_H, so that at λ = 0 the agent is SAC on r_A
+    sac = eps_config("fast", lam=2.5, policy_entropy="sac").agent_sac()
+    assert sac.alpha is None and sac.alpha_extra == pytest.approx(2.5 / cfg.nats_per_unit)
+    assert eps_config("fast", lam=0.0, policy_entropy="sac").agent_sac() == eps_config("fast").sac
+    assert "policy_entropy" not in eps_config("fast").as_dict()  # run folders from before it still resume
+    with pytest.raises(ValueError, match="policy_entropy must be one of lambda, sac"):
+        eps_config("fast", policy_entropy="tuned")
     with pytest.raises(ValueError, match="unknown method"):
         eps_config("fast", method="ppo")
     with pytest.raises(ValueError, match="non-negative"):

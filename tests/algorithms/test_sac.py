@@ -1,5 +1,7 @@
 """SAC's update against a naive per-sample reference on a tiny batch."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -145,6 +147,21 @@ def test_fixed_alpha_stays_fixed(setup):
     state = sac_init(jax.random.split(key)[0], 2, 2, cfg)
     new, m = sac_update(state, batch, key, cfg)
     assert float(m["alpha"]) == pytest.approx(0.2)
+
+
+def test_alpha_extra_adds_to_the_tuned_alpha_which_keeps_tuning(setup):
+    cfg, state, batch, key = setup
+    extra = dataclasses.replace(cfg, alpha_extra=0.3)
+    plus = state.params._replace(log_alpha=jnp.log(jnp.exp(state.params.log_alpha) + 0.3))
+    y_extra, y_plus = sac_losses(state.params, batch, key, extra)[2], sac_losses(plus, batch, key, cfg)[2]
+    np.testing.assert_allclose(y_extra, y_plus, rtol=1e-5)  # the critic's target sees α_tuned + 0.3
+    new, m = sac_update(state, batch, key, extra)
+    _, m_plain = sac_update(state, batch, key, cfg)
+    assert float(new.params.log_alpha) != float(state.params.log_alpha)  # the tuned part still moves
+    assert float(m["alpha"]) == pytest.approx(float(jnp.exp(new.params.log_alpha)) + 0.3)
+    assert float(m["actor_loss"]) != pytest.approx(float(m_plain["actor_loss"]))  # the actor pays the larger α
+    with pytest.raises(ValueError, match="alpha_extra must be non-negative"):
+        SACConfig(alpha_extra=-0.1)
 
 
 def test_actions_are_squashed_and_log_probs_match_density(key):

@@ -126,6 +126,8 @@ class Schedule:
             del d["queries_from"]
         if d.get("sac", {}).get("survival_entropy") == "paid":  # the same, for SAC's survival_entropy
             del d["sac"]["survival_entropy"]
+        if d.get("sac", {}).get("alpha_extra") == 0.0:  # and its alpha_extra
+            del d["sac"]["alpha_extra"]
         return d
 
 

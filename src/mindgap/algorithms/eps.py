@@ -218,7 +218,7 @@ EPS_LEARNER = Learner(
     _learn,
     _reward,
     absorbing=lambda cfg: cfg.absorbing is not None,
-    agent_sac=lambda cfg: eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit),
+    agent_sac=lambda cfg: eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit, cfg.policy_entropy),
     asks=lambda cfg: cfg.surrogate == "learned",
 )
 """EPS (Algorithm 3) as a :class:`~mindgap.algorithms.engine.Learner`: SAC's α is λ/s_H (Eq. 4.6's H_π)."""

@@ -19,6 +19,7 @@ METHODS = ("eps", "drlhp")
 SURROGATES = ("learned", "exact")
 OFFSETS = ("cost", "centred", "none")
 JUDGED = ("transitions", "decisions")
+POLICY_ENTROPY = ("lambda", "sac")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +66,12 @@ class EPSConfig(Schedule):
     person who judges what the agent decided and not the world's answer (the driving study's
     participants): u_H stands for log π_H, the KL is the policy's, and H_T is not part of it (T_A is
     not fitted)."""
+    policy_entropy: str = "lambda"
+    """SAC's entropy coefficient. ``lambda``: λ/s_H alone, fixed — Eq. 4.6 as written, where the policy
+    entropy is inside λ(…), so at λ = 0 the agent has none. ``sac``: SAC's own tuned α plus λ/s_H — the
+    policy optimiser of Algorithm 3 keeps its MaxEnt term, so that at λ = 0 EPS is SAC on r_A ("the
+    lower the λ, the closer the behavior is to the SAC agent", §4.4.1.4). Measured beside each other in
+    docs/experiments/eps.md, "λ = 0"."""
     absorbing: str | None = None
     """Absorbing states for u_H (Kostrikov et al. 2019, as :mod:`~mindgap.algorithms.pbrl`'s): None (the
     default), or ``single`` / ``terminal``. With them the queried segments keep the steps after an
@@ -89,6 +96,8 @@ class EPSConfig(Schedule):
             raise ValueError(f"unknown offset {self.offset!r}: choose from {', '.join(OFFSETS)}")
         if self.judged not in JUDGED:
             raise ValueError(f"judged must be one of {', '.join(JUDGED)}, got {self.judged!r}")
+        if self.policy_entropy not in POLICY_ENTROPY:
+            raise ValueError(f"policy_entropy must be one of {', '.join(POLICY_ENTROPY)}, got {self.policy_entropy!r}")
         if self.absorbing is not None and self.absorbing not in ABSORBING_STATES:
             raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)} or None, got {self.absorbing!r}")
         check_sampler(self.sampler, belief=False)
@@ -108,11 +117,15 @@ class EPSConfig(Schedule):
             del d["absorbing"]
         if self.judged == "transitions":
             del d["judged"]
+        if self.policy_entropy == "lambda":
+            del d["policy_entropy"]
         return d
 
     def agent_sac(self) -> SACConfig:
         """The SAC the agent runs: α fixed to λ·reward_scale/nats_per_unit for EPS, as configured for DRLHP."""
-        return eps_sac_config(self.sac, self.lam, self.nats_per_unit) if self.method == "eps" else self.sac
+        if self.method != "eps":
+            return self.sac
+        return eps_sac_config(self.sac, self.lam, self.nats_per_unit, self.policy_entropy)
 
 
 _FAST = dict(

@@ -222,18 +222,22 @@ def eps_absorbing(params: EPSRewardParams, terminal_obs: jax.Array) -> jax.Array
     return params.lam * (absorbing_u(params, terminal_obs) - params.h_weight * params.h_shift)
 
 
-def eps_sac_config(base: SACConfig, lam: float, nats_per_unit: float) -> SACConfig:
-    """``base`` with a fixed entropy coefficient α = λ · reward_scale / s_H (``s_H`` = ``nats_per_unit``).
+def eps_sac_config(base: SACConfig, lam: float, nats_per_unit: float, policy_entropy: str = "lambda") -> SACConfig:
+    """``base`` with Eq. 4.6's policy-entropy term λ·H_π as SAC's entropy coefficient, on the scale of the
+    standardised u_H: λ · reward_scale / s_H (``s_H`` = ``nats_per_unit``; module docstring, "Scale of H_π").
 
-    SAC's H_π becomes Eq. 4.6's policy-entropy term on the scale of the standardised u_H
-    (module docstring, "Scale of H_π"). Its per-step constant is the λ-term's (``h_shift``, the cost
-    form), so SAC's ``survival_entropy`` stays ``paid``: ``neutral`` would charge α·H̄ a second time.
+    ``policy_entropy``: ``lambda`` — α is that alone, fixed (Eq. 4.6 as written: at λ = 0 no entropy
+    term is left); ``sac`` — it is added to SAC's own α, tuned as ``base`` says (``alpha_extra``), so
+    that at λ = 0 EPS is SAC on r_A. The term's per-step constant is the λ-term's (``h_shift``, the
+    cost form), so SAC's ``survival_entropy`` stays ``paid``: ``neutral`` would charge α·H̄ a second time.
     """
     if lam < 0:
         raise ValueError(f"λ must be non-negative, got {lam}")
     if not nats_per_unit > 0:
         raise ValueError(f"nats_per_unit must be positive, got {nats_per_unit}")
     alpha = float(lam) * base.reward_scale / float(nats_per_unit)
+    if policy_entropy == "sac":
+        return dataclasses.replace(base, alpha_extra=alpha, survival_entropy="paid")
     return dataclasses.replace(base, alpha=alpha, survival_entropy="paid")
 
 

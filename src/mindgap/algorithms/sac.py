@@ -89,7 +89,14 @@ class SACConfig:
     *when* an episode ends is decided by the reward (docs/experiments/driving.md, "The learners
     follow the answers"). A constant per step: where episodes never terminate it changes nothing."""
 
+    alpha_extra: float = 0.0
+    """A fixed amount added to the entropy coefficient, tuned or fixed: α = α_SAC + ``alpha_extra``. EPS's
+    ``policy_entropy = "sac"`` puts Eq. 4.6's λ/s_H here, on top of SAC's own tuned α, so that at λ = 0
+    EPS is SAC on r_A (docs/experiments/eps.md, "λ = 0"). 0 leaves SAC as it is."""
+
     def __post_init__(self):
+        if self.alpha_extra < 0:
+            raise ValueError(f"SAC alpha_extra must be non-negative, got {self.alpha_extra}")
         if self.noise_color < 0:
             raise ValueError(f"SAC noise_color must be non-negative, got {self.noise_color}")
         if self.entropy_bonus < 0 or self.entropy_bonus_halflife < 1:
@@ -145,10 +152,16 @@ def q_values(critic: Params, obs: jax.Array, act: jax.Array) -> jax.Array:
     return jax.vmap(lambda p: mlp(p, x)[..., 0])(critic)
 
 
+def entropy_coefficient(log_alpha: jax.Array, cfg: SACConfig) -> jax.Array:
+    """α: exp(log α), tuned or fixed, plus ``cfg.alpha_extra`` (left out at 0, so the program is SAC's own)."""
+    alpha = jnp.exp(log_alpha)
+    return alpha + cfg.alpha_extra if cfg.alpha_extra else alpha
+
+
 def sac_losses(params: SACParams, batch: Batch, key: jax.Array, cfg: SACConfig):
     """The three losses of one update at ``params`` (used by :func:`sac_update` and its tests)."""
     k_next, k_pi = jax.random.split(key)
-    alpha = jnp.exp(params.log_alpha)
+    alpha = entropy_coefficient(params.log_alpha, cfg)
     a_next, logp_next = sample_action(params.actor, batch.next_obs, k_next)
     q_next = jnp.min(q_values(params.target, batch.next_obs, a_next), axis=0) - alpha * logp_next
     q_next = q_next - survival_charge(alpha, entropy_target(cfg, batch.act.shape[-1]), cfg)
@@ -213,7 +226,7 @@ def apply_update(state: SACState, critic_loss, actor_loss, target_entropy: float
     metrics = {
         "critic_loss": lc,
         "actor_loss": la,
-        "alpha": jnp.exp(log_alpha),
+        "alpha": entropy_coefficient(log_alpha, cfg),
         "q": jnp.mean(q),
         "entropy": -jnp.mean(logp),
     }

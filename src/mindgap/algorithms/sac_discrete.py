@@ -36,7 +36,7 @@ import optax
 from ..data.batch import Batch
 from ..models.categorical import logits
 from ..models.mlp import Params, init_mlp, init_stack, mlp
-from .sac import SACConfig, SACParams, SACState, apply_update, survival_charge
+from .sac import SACConfig, SACParams, SACState, apply_update, entropy_coefficient, survival_charge
 
 TARGET_ENTROPY_SHARE = 0.5
 """H̄ = this · log n when ``SACConfig.target_entropy`` is None (module docstring)."""
@@ -71,7 +71,7 @@ def _taken(q: jax.Array, act: jax.Array) -> jax.Array:
 
 def discrete_sac_losses(params: SACParams, batch: Batch, cfg: SACConfig):
     """The critic and actor losses of one update at ``params``, and the critic's target ``y``."""
-    alpha = jnp.exp(params.log_alpha)
+    alpha = entropy_coefficient(params.log_alpha, cfg)
     lp_next = logits(params.actor, batch.next_obs)
     v_next = jnp.sum(jnp.exp(lp_next) * (jnp.min(all_q(params.target, batch.next_obs), 0) - alpha * lp_next), -1)
     v_next = v_next - survival_charge(alpha, target_entropy(cfg, lp_next.shape[-1]), cfg)
