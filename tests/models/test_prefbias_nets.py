@@ -13,6 +13,7 @@ from mindgap.models.mlp import init_mlp
 from mindgap.models.prefbias_nets import (
     absorbing_value,
     belief_predict,
+    belief_weights_init,
     draw_per_pair,
     posterior_reward,
     reward_sizes,
@@ -178,3 +179,12 @@ def test_draw_per_pair_gives_each_pair_one_draw_of_all_weights(key):
     s_t = jnp.array([[0.1, -0.3]])
     values = jax.vmap(absorbing_value, in_axes=(0, None))(jax.tree.map(lambda x: x[:3], draws), s_t)[:, 0]
     assert len(set(np.asarray(values).tolist())) == 3
+
+
+def test_a_world_of_many_dimensions_gets_a_belief_without_local_bumps(key):
+    # the local stay disturbance needs radial features (at most 3 dimensions): a gym world of 8 has
+    # none, and f_φ is the MLP alone rather than an error (reproduce gym's PrefBias jobs)
+    net = init_mlp(key, [10, 8, 4])
+    assert belief_weights_init(net, 8, local=False) is net
+    local = belief_weights_init(init_mlp(key, [4, 8, 4]), 2, local=True)
+    assert local.stay.shape == (16**2,) and local.noise.shape == (0,)  # 16 bumps an axis, no noise part

@@ -132,8 +132,10 @@ def belief_weights_init(net: Params, obs_dim: int, local: bool, noise: bool = Fa
     """f_φ's weights from an MLP of f_ψ's architecture; with ``local`` a stay disturbance of zeros, and
     with ``noise`` also a noise disturbance of zeros (empty without: f_φ = the MLP exactly either way);
     without ``local`` the MLP's parameters alone."""
+    if not local:  # a world of more dimensions than RBF_MAX_DIM has no bumps to count
+        return net
     m = rbf_count(obs_dim)
-    return BeliefWeights(net, jnp.zeros(m), jnp.zeros(m if noise else 0)) if local else net
+    return BeliefWeights(net, jnp.zeros(m), jnp.zeros(m if noise else 0))
 
 
 def belief_net(params) -> Params:
