@@ -24,7 +24,7 @@ against the person's on held-out true transitions (:mod:`~mindgap.experiments.be
 
 mindgap design driving --run DIR [--episodes N] [--answers-by rollout|rollout-behaviour|expectation|decisions] [--seed S]
 mindgap design driving --run DIR --learner drlhp|eps [--coin] [--only PID] [--exact PID] [--road S] [--lam L]
-                       [--survival-entropy paid|neutral] [--offset cost|centred|none]
+                       [--survival-entropy paid|neutral] [--alpha A] [--offset cost|centred|none]
                        [--absorbing single|terminal|none] [--seeds N]
 
 The driving study's participant gates on a run's participants, before any learner
@@ -107,6 +107,7 @@ def add_parser(sub) -> None:
     v.add_argument("--road", type=float, help="control: the sleet of the road driven on (default the run's)")
     v.add_argument("--lam", type=float, help="control: EPS's λ (default the preset's)")
     v.add_argument("--survival-entropy", choices=("paid", "neutral"), help="control: SAC's survival_entropy")
+    v.add_argument("--alpha", type=float, help="control: DRLHP's SAC entropy coefficient, fixed (default: tuned)")
     v.add_argument(
         "--offset",
         choices=("cost", "centred", "none"),
@@ -172,7 +173,18 @@ def _driving(args) -> int:
 
     if args.episodes < 1:
         raise ValueError("--episodes must be at least 1")
-    control_flags = ("coin", "only", "exact", "road", "lam", "survival_entropy", "offset", "absorbing", "seeds")
+    control_flags = (
+        "coin",
+        "only",
+        "exact",
+        "road",
+        "lam",
+        "survival_entropy",
+        "offset",
+        "absorbing",
+        "seeds",
+        "alpha",
+    )
     if args.learner is not None:
         from ..experiments import driving_controls as dc
 

@@ -17,7 +17,9 @@ own, with one thing changed, and measures the behaviours the experiment measures
 * ``answers_by``: how the participants judge a clip (:attr:`~.driving.DrivingConfig.answers_by`);
 * ``road``: the sleet of the road the learner drives on; ``lam``: EPS's λ;
   ``survival_entropy``: :attr:`~mindgap.algorithms.sac.SACConfig.survival_entropy`; ``offset`` and
-  ``absorbing``: :attr:`~mindgap.algorithms.eps_config.EPSConfig.offset` and ``.absorbing``.
+  ``absorbing``: :attr:`~mindgap.algorithms.eps_config.EPSConfig.offset` and ``.absorbing``;
+  ``alpha``: DRLHP's SAC entropy coefficient fixed (:attr:`~mindgap.algorithms.sac.SACConfig.alpha`)
+  instead of tuned (EPS's is λ/s_H).
 
 ``mindgap design driving --run DIR --learner drlhp|eps [...]`` runs one and prints its record.
 """
@@ -57,6 +59,7 @@ class Control:
     absorbing: str | None = None
     seeds: int | None = None
     answers_by: str | None = None
+    alpha: float | None = None
 
     def __post_init__(self):
         if self.method not in ("drlhp", "eps"):
@@ -65,6 +68,8 @@ class Control:
             raise ValueError("--exact asks no queries: it does not combine with --coin or --only")
         if self.road is not None:
             check_sleet_level(self.road)
+        if self.alpha is not None and (self.method != "drlhp" or not self.alpha > 0):
+            raise ValueError("--alpha fixes DRLHP's entropy coefficient (a positive number); EPS's is λ/s_H")
 
     @property
     def name(self) -> str:
@@ -72,7 +77,7 @@ class Control:
         for field, value in (("coin", self.coin), ("only", self.only), ("exact", self.exact), ("road", self.road),
                              ("lam", self.lam), ("survival", self.survival_entropy), ("offset", self.offset),
                              ("absorbing", self.absorbing), ("seeds", self.seeds),
-                             ("answers", self.answers_by)):  # fmt: skip
+                             ("answers", self.answers_by), ("alpha", self.alpha)):  # fmt: skip
             if value not in (None, False):
                 parts.append(
                     field if value is True else f"{field}-{value:g}" if isinstance(value, float) else f"{field}-{value}"
@@ -85,6 +90,8 @@ def configure(cfg: dr.DrivingConfig, c: Control) -> dr.DrivingConfig:
     eps = cfg.eps
     if c.survival_entropy is not None:
         eps = dataclasses.replace(eps, sac=dataclasses.replace(eps.sac, survival_entropy=c.survival_entropy))
+    if c.alpha is not None:
+        eps = dataclasses.replace(eps, sac=dataclasses.replace(eps.sac, alpha=c.alpha))
     if c.lam is not None:
         eps = dataclasses.replace(eps, lam=c.lam)
     if c.offset is not None:
