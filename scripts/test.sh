@@ -43,11 +43,18 @@ children_cpu() {  # seconds of CPU used by this shell's finished children (`time
   times > "$cpu_log"
   tail -n 1 "$cpu_log" | awk '{ s = 0; for (i = 1; i <= 2; i++) { split($i, t, "m"); sub("s", "", t[2]); s += t[1] * 60 + t[2] }; print s }'
 }
+# Each test file's CPU time goes to a log (tests/conftest.py), held against the budget per file in
+# docs/development.md by scripts/test_budget.py: a file that costs more than its budget is named.
+own_log=""
+if [[ -z "${MINDGAP_TEST_CPU_LOG:-}" ]]; then own_log=1; MINDGAP_TEST_CPU_LOG=$(mktemp); fi
+export MINDGAP_TEST_CPU_LOG
 children_cpu > "$cpu_log.before"
 status=0
 .venv/bin/python -m pytest -n "${MINDGAP_TEST_WORKERS:-2}" --dist loadfile "${marker[@]}" "$@" || status=$?
 children_cpu > "$cpu_log.after"
+if [[ ${#marker[@]} -eq 0 ]]; then .venv/bin/python scripts/test_budget.py "$MINDGAP_TEST_CPU_LOG" || true; fi
 awk -v a="$(cat "$cpu_log.before")" -v b="$(cat "$cpu_log.after")" \
   'BEGIN { printf "scripts/test.sh: the tests took %.1f CPU-minutes\n", (b - a) / 60 }'
 rm -f "$cpu_log" "$cpu_log.before" "$cpu_log.after"
+if [[ -n "$own_log" ]]; then rm -f "$MINDGAP_TEST_CPU_LOG"; fi
 exit "$status"
