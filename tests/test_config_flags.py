@@ -31,7 +31,13 @@ def test_every_kind_of_field_parses_and_an_unset_flag_changes_nothing():
     argv = ["--queries", "40", "--sac.lr", "1e-3", "--reward.hidden", "8,8", "--no-reset-critic", "--sac.alpha", "0.2"]
     _, args = _parse(cfg, argv)
     new = with_flags(cfg, args)
-    assert (new.queries, new.sac.lr, new.reward.hidden, new.reset_critic, new.sac.alpha) == (40, 1e-3, (8, 8), False, 0.2)
+    assert (new.queries, new.sac.lr, new.reward.hidden, new.reset_critic, new.sac.alpha) == (
+        40,
+        1e-3,
+        (8, 8),
+        False,
+        0.2,
+    )
     _, args = _parse(cfg, ["--sac.alpha", "none"])
     assert with_flags(method_config("pebble", sac=cfg.sac.__class__(alpha=0.1)), args).sac.alpha is None
     with pytest.raises(argparse.ArgumentError):
@@ -42,7 +48,9 @@ def test_help_says_the_docstring_and_the_presets_default():
     p, _ = _parse(method_config("pebble"), [])
     text = " ".join(p.format_help().split())
     assert "--candidates CANDIDATES Pairs drawn per query kept (score-based samplers). (default: 10)" in text
-    assert "--reset-critic, --no-reset-critic Re-initialise the critic after pre-training (PEBBLE). (default: on)" in text
+    assert (
+        "--reset-critic, --no-reset-critic Re-initialise the critic after pre-training (PEBBLE). (default: on)" in text
+    )
 
 
 def test_skip_and_only_leave_out_what_a_command_sets_itself():

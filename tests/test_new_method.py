@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mindgap.algorithms import methods
 from mindgap.cli import main
 from mindgap.envs.resolve import import_module
 from mindgap.experiments import prefbias_common as pc
