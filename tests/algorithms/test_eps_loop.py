@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.algorithms import engine, eps
+from mindgap.algorithms import engine, eps, methods
 from mindgap.algorithms.eps_config import EPSConfig, eps_config
 from mindgap.algorithms.eps_maps import surrogate_maps
 from mindgap.algorithms.eps_reward import environment_entropy, eps_reward
@@ -63,10 +63,11 @@ def test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward(method, o
     person = ExpectationTeacher(world.belief(), sac_init(key, 2, 2, SACConfig(hidden=(8,))).params.actor, world.env)
     person = dataclasses.replace(person, cfg=cfg.teacher)
     env, w = world.env, engine.WorldArgs(world.params, world.obs_units(), person)
-    carry = engine.init_carry(jax.random.split(key, 2), eps.LEARNER, env, world.params, cfg)
-    carry = engine.run_chunk_all(carry, w, eps.LEARNER, env, cfg, "random")
+    learner = methods.for_config(cfg).learner(cfg)  # EPS's or expectation-DRLHP's
+    carry = engine.init_carry(jax.random.split(key, 2), learner, env, world.params, cfg)
+    carry = engine.run_chunk_all(carry, w, learner, env, cfg, "random")
     before = np.asarray(carry.loop.replay.reward)
-    carry, _ = engine.feedback_round(carry, w, person, eps.LEARNER, env, cfg)
+    carry, _ = engine.feedback_round(carry, w, person, learner, env, cfg)
     assert np.asarray(carry.queries).tolist() == [cfg.per_round] * 2  # the round's budget, asked or not
     asked = np.asarray(carry.prefs.count).tolist()
     assert asked == ([0, 0] if surrogate == "exact" else [cfg.per_round] * 2)

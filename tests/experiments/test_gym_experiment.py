@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from mindgap.algorithms import pbrl, prefbias
+from mindgap.algorithms import methods, pbrl, prefbias
 from mindgap.cli import main
 from mindgap.envs.gym_world import gym_world_from_spec
 from mindgap.experiments import gym_measures as gm
@@ -82,8 +82,12 @@ def stand_ins(monkeypatch):
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(b"GIF89a")
 
+    def fake_train(method, world, cfg, seeds=1, **kw):  # methods.train, as the experiments call it
+        return (fake_prefbias if method == "prefbias" else fake_pbrl)(world, cfg, seeds, **kw)
+
     monkeypatch.setattr(prefbias, "train", fake_prefbias)
     monkeypatch.setattr(pbrl, "train", fake_pbrl)
+    monkeypatch.setattr(methods, "train", fake_train)
     monkeypatch.setattr(pg, "fit_learned_belief", fake_fit)
     monkeypatch.setattr(pg, "reward_error", fake_error)
     monkeypatch.setattr(pg, "draw_rollout", fake_draw)

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from mindgap import rng
-from mindgap.algorithms import pbrl, prefbias
+from mindgap.algorithms import methods, pbrl, prefbias
 from mindgap.cli import main
 from mindgap.data.segments import Segments
 from mindgap.envs.terrain import load_world
@@ -118,8 +118,12 @@ def stand_ins(monkeypatch):
             "belief": "human",
         }
 
+    def fake_train(method, world, cfg, seeds=1, **kw):  # methods.train, as the experiments call it
+        return (fake_prefbias if method == "prefbias" else fake_pbrl)(world, cfg, seeds, **kw)
+
     monkeypatch.setattr(prefbias, "train", fake_prefbias)
     monkeypatch.setattr(pbrl, "train", fake_pbrl)
+    monkeypatch.setattr(methods, "train", fake_train)
     monkeypatch.setattr(pc, "_reference", fake_reference)
     monkeypatch.setattr(pc, "learned_noise", lambda res, world, cfg: (res["belief_noise"], res["dynamics_noise"]))
     monkeypatch.setattr(pc, "learned_stay", lambda res, world: (res["belief_stay"], res["dynamics_stay"]))
