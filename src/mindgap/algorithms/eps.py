@@ -212,26 +212,22 @@ def _where(cond, a, b):
     return jax.tree.map(lambda x, y: jnp.where(cond, x, y), a, b)
 
 
-EPS_LEARNER = Learner(
-    _init,
-    _select,
-    _learn,
-    _reward,
-    absorbing=lambda cfg: cfg.absorbing is not None,
-    agent_sac=lambda cfg: eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit, cfg.policy_entropy),
-    asks=lambda cfg: cfg.surrogate == "learned",
+def _learner(select, learn, reward, agent_sac) -> Learner:
+    """A Learner of the EPS family: both share the model (u_H's ensemble, T_A, the standardisation)."""
+    absorbing = lambda cfg: cfg.absorbing is not None  # noqa: E731
+    return Learner(_init, select, learn, reward, absorbing=absorbing, agent_sac=agent_sac, asks=_asks)
+
+
+def _asks(cfg: EPSConfig) -> bool:
+    return cfg.surrogate == "learned"
+
+
+EPS_LEARNER = _learner(
+    _select, _learn, _reward, lambda cfg: eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit, cfg.policy_entropy)
 )
 """EPS (Algorithm 3) as a :class:`~mindgap.algorithms.engine.Learner`: SAC's α is λ/s_H (Eq. 4.6's H_π)."""
 
-DRLHP_LEARNER = Learner(
-    _init,
-    _drlhp_select,
-    _drlhp_learn,
-    _drlhp_reward,
-    absorbing=lambda cfg: cfg.absorbing is not None,
-    agent_sac=lambda cfg: cfg.sac,
-    asks=lambda cfg: cfg.surrogate == "learned",
-)
+DRLHP_LEARNER = _learner(_drlhp_select, _drlhp_learn, _drlhp_reward, lambda cfg: cfg.sac)
 """Expectation-DRLHP (§4.4.1.1) as a :class:`~mindgap.algorithms.engine.Learner`: the same answers and
 ensemble, the agent on the standardised u_H alone with SAC's α tuned as configured."""
 

@@ -71,7 +71,7 @@ class EPSConfig(Schedule):
     entropy is inside λ(…), so at λ = 0 the agent has none. ``sac``: SAC's own tuned α plus λ/s_H — the
     policy optimiser of Algorithm 3 keeps its MaxEnt term, so that at λ = 0 EPS is SAC on r_A ("the
     lower the λ, the closer the behavior is to the SAC agent", §4.4.1.4). Measured beside each other in
-    docs/experiments/eps.md, "λ = 0"."""
+    docs/experiments/eps.md, "What λ = 0 means"."""
     absorbing: str | None = None
     """Absorbing states for u_H (Kostrikov et al. 2019, as :mod:`~mindgap.algorithms.pbrl`'s): None (the
     default), or ``single`` / ``terminal``. With them the queried segments keep the steps after an

@@ -92,7 +92,7 @@ class SACConfig:
     alpha_extra: float = 0.0
     """A fixed amount added to the entropy coefficient, tuned or fixed: α = α_SAC + ``alpha_extra``. EPS's
     ``policy_entropy = "sac"`` puts Eq. 4.6's λ/s_H here, on top of SAC's own tuned α, so that at λ = 0
-    EPS is SAC on r_A (docs/experiments/eps.md, "λ = 0"). 0 leaves SAC as it is."""
+    EPS is SAC on r_A (docs/experiments/eps.md, "What λ = 0 means"). 0 leaves SAC as it is."""
 
     def __post_init__(self):
         if self.alpha_extra < 0:
