@@ -96,7 +96,7 @@ def add_config_flags(
         if annotation.replace(" ", "") == "bool":
             group.add_argument(
                 flag, dest=PREFIX + path, action=argparse.BooleanOptionalAction, default=argparse.SUPPRESS,
-                help=f"{doc} (default: {'on' if value else 'off'})",
+                help=f"{doc} (default: {'on' if value else 'off'})".replace("%", "%%"),
             )  # fmt: skip
             continue
         parse = _parser_of(annotation)
