@@ -57,7 +57,7 @@ from ..models.reward_ensemble import RewardState, ensemble_reward, preference_pr
 from ..teachers.expectation import ExpectationTeacher
 from ..teachers.host import HostTeacher
 from .engine import Learner, WorldArgs, run_record
-from .eps_config import EPSConfig
+from .eps_config import EPSConfig, eps_agent_sac
 from .eps_reward import (
     EPSRewardParams,
     ExactSurrogate,
@@ -66,7 +66,6 @@ from .eps_reward import (
     entropy_mean_from_replay,
     eps_absorbing,
     eps_reward,
-    eps_sac_config,
     normalised_u,
     policy_entropy_max,
     u_norm_from_replay,
@@ -222,9 +221,7 @@ def _asks(cfg: EPSConfig) -> bool:
     return cfg.surrogate == "learned"
 
 
-EPS_LEARNER = _learner(
-    _select, _learn, _reward, lambda cfg: eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit, cfg.policy_entropy)
-)
+EPS_LEARNER = _learner(_select, _learn, _reward, eps_agent_sac)
 """EPS (Algorithm 3) as a :class:`~mindgap.algorithms.engine.Learner`: SAC's α is λ/s_H (Eq. 4.6's H_π)."""
 
 DRLHP_LEARNER = _learner(_drlhp_select, _drlhp_learn, _drlhp_reward, lambda cfg: cfg.sac)

@@ -122,10 +122,13 @@ class EPSConfig(Schedule):
         return d
 
     def agent_sac(self) -> SACConfig:
-        """The SAC the agent runs: α fixed to λ·reward_scale/nats_per_unit for EPS, as configured for DRLHP."""
-        if self.method != "eps":
-            return self.sac
-        return eps_sac_config(self.sac, self.lam, self.nats_per_unit, self.policy_entropy)
+        """The SAC the agent runs: :func:`eps_agent_sac` for EPS, as configured for DRLHP."""
+        return eps_agent_sac(self) if self.method == "eps" else self.sac
+
+
+def eps_agent_sac(cfg: EPSConfig) -> SACConfig:
+    """EPS's SAC: Eq. 4.6's λ·H_π as the entropy coefficient (:func:`~.eps_reward.eps_sac_config`)."""
+    return eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit, cfg.policy_entropy)
 
 
 _FAST = dict(
