@@ -22,6 +22,13 @@ mindgap design recovery NAME|FILE [NAME|FILE …] [--belief B] [--budget N] [--u
 Fits PrefBias's inference alone to simulated answers and reports, by terrain, the learned belief
 against the person's on held-out true transitions (:mod:`~mindgap.experiments.belief_recovery`).
 
+mindgap design reward-plan --run DIR --job KEY [--rollouts N] [--out DIR]
+
+For each seed of a finished PrefBias or PEBBLE job of a nav, priors or sampling run (its
+checkpoint in ``DIR/train``): the optimum of its learned reward under the true dynamics, run in
+the world, and what the reward says of the optimal and the person's expected plan
+(:mod:`~mindgap.experiments.reward_optimum`).
+
 mindgap design driving --run DIR [--episodes N] [--answers-by rollout|rollout-behaviour|expectation|decisions] [--seed S]
 mindgap design driving --run DIR --learner drlhp|eps [--coin] [--only PID] [--exact PID] [--road S] [--lam L]
                        [--survival-entropy paid|neutral] [--alpha A] [--offset cost|centred|none]
@@ -87,6 +94,15 @@ def add_parser(sub) -> None:
     r.add_argument("--no-tabular", action="store_true", help="skip the tabular maximum-likelihood reference")
     r.add_argument("--seed", type=int, default=0, help="random seed")
     r.add_argument("--out", type=Path, help="folder for WORLD-recovery.txt, .json and .png (the stay maps)")
+    rp = dsub.add_parser(
+        "reward-plan",
+        help="plan on a finished preference learner's reward: is a missed route the reward's or the policy's? "
+        "(docs/experiments/identifiability.md)",
+    )
+    rp.add_argument("--run", type=Path, required=True, help="a nav, priors or sampling run folder with checkpoints")
+    rp.add_argument("--job", required=True, help="a finished PrefBias or PEBBLE job of it, e.g. nav2/prefbias-q800")
+    rp.add_argument("--rollouts", type=int, default=20, help="rollouts of the reward's optimal plan per seed (default 20)")
+    rp.add_argument("--out", type=Path, help="folder for JOB-reward-plan.txt and .json")
     v = dsub.add_parser(
         "driving", help="the driving study's participant gates, before any learner (docs/experiments/driving.md)"
     )
@@ -126,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
         return _recovery(args)
     if args.design_command == "driving":
         return _driving(args)
+    if args.design_command == "reward-plan":
+        return _reward_plan(args)
     from ..design.design_check import DesignConfig, design_check, plan_policies, report
     from ..teachers.preference import TeacherConfig
 
@@ -266,6 +284,23 @@ def _recovery(args) -> int:
             atomic_write(args.out / f"{world.name}-recovery.txt", text)
             atomic_write(args.out / f"{world.name}-recovery.json", json.dumps(rec.as_dict(), indent=2))
             save_figure(rec, world, args.out / f"{world.name}-recovery.png")
+    return 0
+
+
+def _reward_plan(args) -> int:
+    from .._io import atomic_write
+    from ..experiments.reward_optimum import report, reward_plan
+
+    if args.rollouts < 1:
+        raise ValueError("--rollouts must be at least 1")
+    rec = reward_plan(args.run, args.job, args.rollouts)
+    text = report(rec)
+    print(text)
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        stem = args.job.replace("/", "__")
+        atomic_write(args.out / f"{stem}-reward-plan.txt", text + "\n")
+        atomic_write(args.out / f"{stem}-reward-plan.json", json.dumps(rec, indent=2))
     return 0
 
 

@@ -189,7 +189,12 @@ def compute_job(folder: RunFolder, job: Job, seeds: int, *, fresh: bool, progres
 
 def job_dir(folder: RunFolder, job: Job) -> Path:
     """Where a job keeps its engine checkpoint (and anything else it stores beside its record)."""
-    return folder.root / "train" / job.key.replace("/", "__")
+    return train_dir(folder.root, job)
+
+
+def train_dir(root: Path, job: Job) -> Path:
+    """:func:`job_dir` of the run folder at ``root``."""
+    return root / "train" / job.key.replace("/", "__")
 
 
 def run_jobs(
