@@ -273,6 +273,7 @@ def _recovery(args) -> int:
     except TypeError as e:
         raise ValueError(f"--set: {e}") from None
     pcfg.check()
+    cfg.check(pcfg)  # the fits' own inference too, before any answer is simulated
     for world in _terrain_worlds(args.worlds, args.belief):
         rec = belief_recovery(
             world, pcfg, cfg, args.belief, progress=lambda m, w=world.name: print(f"{w}: {m} …", flush=True)

@@ -74,7 +74,9 @@ class RecoveryConfig:
     """Also run the tabular maximum-likelihood fit (the reference)."""
     seed: int = 0
 
-    def check(self) -> None:
+    def check(self, pcfg: PrefBiasConfig | None = None) -> None:
+        """Refuse a bad setting in one line; with ``pcfg``, also the inference each fit runs
+        (``updates / rounds`` rounds of it), before any answer is simulated."""
         if self.budget < 1 or self.segment < 1 or self.updates < 1 or self.draws < 2:
             raise ValueError("budget, segment and updates must be at least 1, draws at least 2")
         if self.rounds < 1 or self.updates % self.rounds:
@@ -83,6 +85,13 @@ class RecoveryConfig:
             raise ValueError(f"unknown person {self.person!r}: choose from {', '.join(PERSONS)}")
         if not self.beta > 0:
             raise ValueError(f"beta must be positive, got {self.beta}")
+        if pcfg is not None:
+            fit_config(pcfg, self).check()
+
+
+def fit_config(pcfg: PrefBiasConfig, cfg: RecoveryConfig) -> PrefBiasConfig:
+    """The inference of one of the ``cfg.rounds`` fits: ``cfg.updates / cfg.rounds`` rounds of ``pcfg``."""
+    return dataclasses.replace(pcfg, updates=cfg.updates // cfg.rounds)
 
 
 class TerrainRow(NamedTuple):
@@ -202,7 +211,7 @@ def belief_recovery(world, pcfg: PrefBiasConfig, cfg: RecoveryConfig = RecoveryC
     dyn, _ = train_dynamics(k_psi, obs, act, nxt, valid, pcfg.dynamics, init=start)
 
     say(f"fitting q(w) q(φ) for {cfg.updates} rounds" + (f" in {cfg.rounds} fits" if cfg.rounds > 1 else ""))
-    fcfg = dataclasses.replace(pcfg, updates=cfg.updates // cfg.rounds)
+    fcfg = fit_config(pcfg, cfg)
     fcfg.check()
     state = prefbias_init(k_init, 2, 2, fcfg, dyn, units=world.obs_units())
     fit_jit = jax.jit(fit, static_argnames="cfg")
