@@ -132,9 +132,15 @@ def test_cli_runs_writes_its_outputs_and_resumes(tmp_path, monkeypatch):
     assert main(argv) == 0  # a rerun resumes from the finished checkpoint: the same curve
     assert (out / "curve.csv").read_text() == curve
     assert main([*argv[:-1], "--method", "ppo", "--fresh"]) == 2
+
+
+@pytest.mark.slow  # a second EPS program to compile (cold ~20 s); the default tier checks the same at the round
+# level: the exact surrogate's rounds ask no query (test_a_feedback_round_relabels_the_buffer_with_the_reshaped_reward)
+def test_cli_with_the_exact_surrogate_asks_no_query(tmp_path, monkeypatch):
+    monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
+    argv = ["eps", "--world", "d1", "--fast", "--seeds", "2", "--rollouts", "4", "--nats-per-unit", "3"]
     # the oracle ablation asks no query, and says so (its rounds still count their budget)
-    exact = [*argv[:-2], str(tmp_path / "exact"), "--quiet", "--surrogate", "exact"]
-    assert main(exact) == 0
+    assert main([*argv, "--out", str(tmp_path / "exact"), "--quiet", "--surrogate", "exact"]) == 0
     assert json.loads((tmp_path / "exact" / "summary.json").read_text())["queries"] == 0
 
 

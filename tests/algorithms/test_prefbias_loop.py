@@ -76,6 +76,8 @@ def icy(world_file):
     return load_world(str(world_file))
 
 
+@pytest.mark.slow  # 37 s cold: three PrefBias runs. The default tier keeps resume after a kill through the same
+# engine (tests/algorithms/test_pbrl.py, PEBBLE), PrefBias's rounds (the relabel tests here) and its maps (test_prefbias_nets)
 def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
     cfg = _cli_fast()
     whole = train(icy, cfg, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
