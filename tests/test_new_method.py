@@ -76,3 +76,34 @@ def test_a_bad_methods_file_is_one_line(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("MINDGAP_METHODS", str(tmp_path / "missing.py"))
     assert main(["linear-pebble", "--help"]) == 2
     assert capsys.readouterr().err.strip().startswith("mindgap: error: MINDGAP_METHODS: no such file")
+
+
+def test_a_new_learner_joins_the_nav_experiment_beside_pebble(method, tmp_path, monkeypatch, capsys):
+    from mindgap.algorithms.engine import Schedule
+    from mindgap.experiments import prefbias_nav, registry
+
+    cfg = registry.configure("nav", "fast", worlds=("d1",), methods=("linear-pebble",))
+    assert registry.preset_of("nav", cfg) == "fast"  # an option of the preset, not a custom configuration
+    jobs = {j.key: j for j in prefbias_nav.jobs(cfg)}
+    job, pebble = jobs["d1/linear-pebble-q30"], jobs["d1/pebble-q30"]
+    for f in dataclasses.fields(Schedule):  # PEBBLE's schedule, budget and person; its own models
+        if f.name != "method":
+            assert getattr(job.cfg, f.name) == getattr(pebble.cfg, f.name), f.name
+    assert job.cfg.sampler == method.preset("full").sampler and job.label == f"{method.label} (30 queries)"
+    out = tmp_path / "nav"
+    line = registry.command("nav", cfg, out)
+    assert line == f"mindgap reproduce nav --fast --worlds d1 --method linear-pebble --out {out}"
+
+    monkeypatch.setenv("MINDGAP_METHODS", str(EXAMPLE))
+    argv = ["reproduce", "nav", "--fast", "--quiet", "--env", "d1", "--method", "linear-pebble", "--out", str(out)]
+    assert main([*argv, "--job", "d1/linear-pebble-q30"]) == 0
+    record = json.loads((out / "jobs" / "d1__linear-pebble-q30.json").read_text())
+    assert record["method"] == "linear-pebble" and record["curve"][-1][3] == 30 and record["reward_error"] is not None
+    assert record["command"] == f"{line} --job d1/linear-pebble-q30"
+    # refused in one line: a method that learns no reward from preferences, an unknown one, another experiment
+    for bad in (["--method", "sac"], ["--method", "nonesuch"]):
+        assert main(["reproduce", "nav", "--fast", "--env", "d1", *bad, "--out", str(tmp_path / "x")]) == 2
+    assert main(["reproduce", "eps", "--fast", "--method", "linear-pebble"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "learns no reward from preferences" in err[0] and "unknown method 'nonesuch'" in err[1]
+    assert "--method adds learners to nav" in err[2]

@@ -44,8 +44,8 @@ def use_compilation_cache(path: str | None = None) -> None:
     Every program is kept, not only those that took long to compile: a run makes hundreds of
     small ones (one per eager operation and shape, about 20 ms of compiling each on the CPU
     against a millisecond or two to load), and a threshold (JAX's default keeps only programs
-    that took 1 s to compile) recompiles them all on every run. Measured on ``reproduce table1
-    --fast``: 25 s warm with a 0.5 s threshold, 15 s with none (docs/development.md). The cache has no size cap: JAX's cap
+    that took 1 s to compile) recompiles them all on every run (docs/development.md). The cache
+    has no size cap: JAX's cap
     (``jax_compilation_cache_max_size``) rescans the whole folder on every write, which made the
     test suite's thousands of small programs slower than compiling them; delete the folder to
     reclaim its space.

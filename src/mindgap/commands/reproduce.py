@@ -28,6 +28,13 @@ def add_parser(sub) -> None:
         help="terrain experiments: run on this world instead (repeatable): a named world, a world file, "
         "or path.py:factory[,key=value…] with a belief and an exact log_prob",
     )
+    r.add_argument(
+        "--method",
+        action="append",
+        metavar="NAME",
+        help="nav: also run this registered preference learner beside PEBBLE (repeatable; "
+        "MINDGAP_METHODS=file.py registers one)",
+    )
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--sleet", type=float, help="driving: the road's sleet level, 0 (dry) to 1 (full sleet)")
     r.add_argument("--traffic", type=int, help="driving: other cars on the road (0 to 4 on its three lanes)")
@@ -71,6 +78,8 @@ def run(args) -> int:
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
+    if args.method and args.name != "nav":
+        raise ValueError("--method adds learners to nav; the other experiments have their own fixed sets")
     for flag in ("sleet", "traffic", "sanity", "importance", "answers_by"):
         if getattr(args, flag) is not None and args.name != "driving":
             raise ValueError(f"--{flag.replace('_', '-')} belongs to the driving study")

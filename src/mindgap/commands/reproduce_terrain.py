@@ -2,14 +2,16 @@
 and ``gym`` (the control domains, whose ``--worlds`` are domain names: lunar, hopper, cheetah, hopper-mjx,
 cheetah-mjx; :mod:`~.prefbias_gym`).
 
-mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--out DIR] [--fresh] [--quiet] [--assemble]
+mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--method NAME …] [--out DIR] [--fresh] [--quiet] [--assemble]
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, tiny networks: a dry run and the tests'
 preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 50 000
 steps, 80 queries a round; the EPS ones: 5 seeds, 60 000 steps, 800 queries). ``--worlds``
 runs a subset of the experiment's worlds (or world files); ``--env SPEC`` (repeatable) runs
 it on any world with a belief and an exact density, a user's ``path.py:factory`` included
-(:mod:`~.world_measures` says what is measured on a world without a map). The run folder defaults to
+(:mod:`~.world_measures` says what is measured on a world without a map). ``--method NAME``
+(repeatable, nav) adds a registered preference learner beside PEBBLE, on PEBBLE's schedule and
+budget (``MINDGAP_METHODS=file.py`` registers one from a file). The run folder defaults to
 ``runs/NAME`` (``runs/NAME-fast``); rerunning resumes: finished jobs are read back, an
 interrupted one continues from its checkpoint.
 """
@@ -19,6 +21,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from ..algorithms import methods
 from ..experiments import registry
 from ..experiments._runfolder import print_run
 
@@ -49,6 +52,13 @@ def reproduce(args) -> int:
         if any(not w for w in worlds):
             raise ValueError("--env needs a world")
         cfg = replace(cfg, worlds=worlds)
+    extra = tuple(getattr(args, "method", None) or ())
+    if extra:
+        if "methods" not in registry.options(args.name):
+            raise ValueError(f"--method adds learners to nav; {args.name} has its own fixed set")
+        for name in extra:
+            methods.get(name)  # an unknown name is refused here, with the registered ones
+        cfg = replace(cfg, methods=extra)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     only = getattr(args, "job", None)
     summary = module.run(

@@ -111,6 +111,7 @@ def reproduce(args: argparse.Namespace) -> int:
         seeds=args.seeds,
         worlds=worlds or None,
         participants=args.participants,
+        methods=tuple(getattr(args, "method", None) or ()) or None,
     )
     if worlds:  # refused here in one line, not in every worker
         from ..experiments.world_measures import experiment_world

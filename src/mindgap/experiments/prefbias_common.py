@@ -27,6 +27,7 @@ import numpy as np
 
 from .._io import atomic_write
 from ..algorithms import methods, pbrl
+from ..algorithms.engine import Schedule
 from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
 from ..models.reward_ensemble import RewardConfig
 from ..planning.terrain_maps import noise_maps, stay_maps, table_noise_map, table_stay_map
@@ -112,7 +113,7 @@ class Job(NamedTuple):
     Attributes:
         key: its name in the run folder, ``WORLD/NAME``.
         world: a named world or world file.
-        method: ``reference``, ``sac``, ``pebble`` or ``prefbias``.
+        method: ``reference``, ``sac``, ``pebble``, ``prefbias`` or a registered preference learner's name.
         label: legend and table label.
         cfg: :class:`ReferenceConfig`, :class:`~mindgap.algorithms.pbrl.PbRLConfig` or
             :class:`~mindgap.algorithms.prefbias.PrefBiasLoopConfig`.
@@ -169,6 +170,25 @@ def pebble_job(world: str, learn: Learners, queries: int, person: str = "biased"
     return Job(
         f"{world}/pebble-q{queries}-{person}", world, "pebble", label, cfg, {"queries": queries, "person": person}
     )
+
+
+def method_job(world: str, name: str, learn: Learners, queries: int) -> Job:
+    """A job of the registered preference learner ``name`` on PEBBLE's schedule and person.
+
+    Its config is its ``full`` preset with every field of the engine's
+    :class:`~mindgap.algorithms.engine.Schedule` (steps, rounds, SAC, the person's knobs, seed)
+    taken from ``learn.pebble``, at ``queries``: what differs from PEBBLE is the method's own
+    models and sampler, nothing of the schedule.
+
+    Raises:
+        ValueError: ``name`` is not registered, or is not a preference learner.
+    """
+    method = methods.get(name)
+    if method.answers != "preferences" or method.learned_reward is None:
+        raise ValueError(f"{name} learns no reward from preferences: an experiment's learners beside PEBBLE must")
+    schedule = {f.name: getattr(learn.pebble, f.name) for f in dataclasses.fields(Schedule) if f.name != "method"}
+    cfg = dataclasses.replace(method.preset("full"), **{**schedule, "queries": queries})
+    return Job(f"{world}/{name}-q{queries}", world, name, f"{method.label} ({queries} queries)", cfg, {"queries": queries})
 
 
 def teacher_of(job: Job) -> str:

@@ -55,6 +55,11 @@ class NavConfig:
     a learner that learns from the answers must do worse on them than on the person's."""
     seeds: int = 10
     """Ten: with five, one oracle seed below the random policy moved nav2's normalised scores by half."""
+    methods: tuple[str, ...] = ()
+    """More preference learners, by the names they are registered under
+    (:func:`~mindgap.algorithms.methods.register`; ``MINDGAP_METHODS`` registers one from a file):
+    each runs on every world beside PEBBLE, with PEBBLE's budget and schedule
+    (:func:`~.prefbias_common.method_job`). Empty in the dissertation's presets."""
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))
     reference: pc.ReferenceConfig = pc.ReferenceConfig()
 
@@ -75,6 +80,7 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
     for w in cfg.worlds:
         out += [pc.reference_job(w, cfg.reference), pc.oracle_job(w, cfg.learners)]
         out.append(pc.pebble_job(w, cfg.learners, cfg.pebble_queries))
+        out += [pc.method_job(w, name, cfg.learners, cfg.pebble_queries) for name in cfg.methods]
         for q in cfg.budgets:
             pb = replace(cfg.learners.prefbias, queries=q)
             out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries)", f"prefbias-q{q}"))
@@ -106,7 +112,8 @@ def run(cfg: NavConfig, out: Path, **kw) -> dict:
 
 def _order(rec: dict) -> tuple:
     person = {"biased": 0, "unbiased": 1, "coin": 2}.get(rec["tags"].get("person", "biased"), 3)
-    return (person, {"prefbias": 0, "pebble": 1, "sac": 2}[rec["method"]], rec["tags"].get("queries", 0))
+    rank = {"prefbias": 0, "pebble": 1, "sac": 3}.get(rec["method"], 2)  # a registered learner after PEBBLE
+    return (person, rank, rec["tags"].get("queries", 0), rec["method"])
 
 
 def write_outputs(cfg: NavConfig, out: Path, records: dict) -> dict:

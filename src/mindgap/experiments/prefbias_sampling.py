@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..algorithms.prefbias_queries import SAMPLERS
 from ..plotting.learning import save_learning_curves
 from . import prefbias_common as pc
 from . import world_measures as wm
@@ -33,7 +32,9 @@ class SamplingConfig:
 
     worlds: tuple[str, ...] = ("nav1",)
     """Named worlds or world files (each needs a belief)."""
-    samplers: tuple[str, ...] = tuple(SAMPLERS)
+    samplers: tuple[str, ...] = ("uniform", "disagreement", "entropy", "preference_disagreement")
+    """The four samplers of §3.4.3.2, named: a sampler registered later (a user's) is not one of the
+    dissertation's, and must not change this experiment's preset."""
     queries: int = 800
     seeds: int = 10
     learners: pc.Learners = field(default_factory=lambda: pc.learners("full"))

@@ -35,6 +35,7 @@ _OPTIONS = {
     "table1": ("seeds", "demo_count_seeds"),
     "coffee": ("participants",),
     "driving": ("seeds", "sleet", "traffic", "sanity", "importance", "answers_by"),
+    "nav": ("seeds", "worlds", "methods"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -53,17 +54,19 @@ def configure(
     seeds: int | None = None,
     worlds: tuple[str, ...] | None = None,
     participants: int | None = None,
+    methods: tuple[str, ...] | None = None,
 ):
     """The configuration ``mindgap reproduce NAME`` runs: the ``preset`` with the command line's options.
 
     ``seeds`` (table1 and the terrain experiments; table1's data-efficiency sweep keeps at most
     that many), ``worlds`` (the terrain experiments: named worlds, world files or factories),
-    ``participants`` (coffee). An option the experiment does not take is refused.
+    ``participants`` (coffee), ``methods`` (nav: registered preference learners run beside PEBBLE).
+    An option the experiment does not take is refused.
     """
     from dataclasses import replace
 
     cfg = module(name).preset(preset)
-    given = {"seeds": seeds, "worlds": worlds, "participants": participants}
+    given = {"seeds": seeds, "worlds": worlds, "participants": participants, "methods": methods}
     for option, value in given.items():
         if value is not None and option not in options(name):
             raise ValueError(f"{name} does not take {option} (it takes {', '.join(options(name))})")
@@ -79,6 +82,8 @@ def configure(
         cfg = replace(cfg, worlds=tuple(worlds))
     if participants is not None:
         cfg = replace(cfg, participants=participants)
+    if methods:
+        cfg = replace(cfg, methods=tuple(methods))
     return cfg
 
 
@@ -144,6 +149,8 @@ def command(name: str, config, out: str | Path) -> str:
                 words += ["--env", w]
         else:
             words += ["--worlds", ",".join(worlds)]
+    for method in cfg.get("methods") or ():
+        words += ["--method", method]
     words += ["--out", str(out)]
     line = shlex.join(words)
     return line if preset != "custom" else line + "  # nearest preset: this folder's config.json differs"

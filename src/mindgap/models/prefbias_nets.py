@@ -145,9 +145,8 @@ def belief_net(params) -> Params:
 
 STAY_GAIN = RBF_GAIN
 """Height of each bump of :func:`stay_features` (the absorbing heads' gain): a step of Adam then moves the
-stay logit about as far as it moves the MLP's outputs. Measured on nav1 with unit-height bumps, 3,000
-rounds moved the icy corridor's stay probability to 0.80 and 6,000 to 0.89 (the person's 0.91): the fit
-was limited by its step size, not by the answers. The prior is stated per unit of height
+stay logit about as far as it moves the MLP's outputs; with unit-height bumps the fit is held back by its
+step size, not by the answers (docs/experiments/identifiability.md, "The belief posterior"). The prior is stated per unit of height
 (:func:`~mindgap.algorithms.prefbias_inference.belief_prior_scales` divides by the gain), so the gain
 changes the pace of the fit and not the model."""
 

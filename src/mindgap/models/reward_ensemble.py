@@ -25,9 +25,9 @@ has its own absorbing state, ``r_abs(s_T)`` a learned function of the state ``s_
 episode ended in — the goal's absorbing state can then be good and a pit's bad. That
 function is local, a linear layer on compactly supported radial basis features of
 ``s_T`` without a bias (:func:`absorbing_features`), so that it stays exactly 0 at
-terminal states no segment has reached yet: an MLP head, tried first, carried the pits'
-−1 over to a goal that some seeds had not yet found, and those seeds then avoided it for
-good (d1: 2 of 5 seeds solved).
+terminal states no segment has reached yet — a smooth head carries the pits' value over to a
+goal not yet found, and the seeds that have not found it then avoid it (docs/experiments/pbrl.md,
+"Absorbing states on d1").
 Without absorbing states the parameters are the plain MLP stack, as before.
 
 **The bound.** Every learned reward in mindgap, this ensemble's (PEBBLE, DRLHP, EPS's u_H) and
