@@ -106,4 +106,4 @@ def test_a_new_learner_joins_the_nav_experiment_beside_pebble(method, tmp_path, 
     assert main(["reproduce", "eps", "--fast", "--method", "linear-pebble"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert "learns no reward from preferences" in err[0] and "unknown method 'nonesuch'" in err[1]
-    assert "--method adds learners to nav" in err[2]
+    assert "--method adds learners to nav and gym" in err[2]

@@ -32,7 +32,7 @@ def add_parser(sub) -> None:
         "--method",
         action="append",
         metavar="NAME",
-        help="nav: also run this registered preference learner beside PEBBLE (repeatable; "
+        help="nav, gym: also run this registered preference learner beside PEBBLE (repeatable; "
         "MINDGAP_METHODS=file.py registers one)",
     )
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
@@ -78,8 +78,8 @@ def run(args) -> int:
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
-    if args.method and args.name != "nav":
-        raise ValueError("--method adds learners to nav; the other experiments have their own fixed sets")
+    if args.method and args.name not in ("nav", "gym"):
+        raise ValueError("--method adds learners to nav and gym; the other experiments have their own fixed sets")
     for flag in ("sleet", "traffic", "sanity", "importance", "answers_by"):
         if getattr(args, flag) is not None and args.name != "driving":
             raise ValueError(f"--{flag.replace('_', '-')} belongs to the driving study")

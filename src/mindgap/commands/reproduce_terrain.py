@@ -10,7 +10,7 @@ steps, 80 queries a round; the EPS ones: 5 seeds, 60 000 steps, 800 queries). ``
 runs a subset of the experiment's worlds (or world files); ``--env SPEC`` (repeatable) runs
 it on any world with a belief and an exact density, a user's ``path.py:factory`` included
 (:mod:`~.world_measures` says what is measured on a world without a map). ``--method NAME``
-(repeatable, nav) adds a registered preference learner beside PEBBLE, on PEBBLE's schedule and
+(repeatable, nav and gym) adds a registered preference learner beside PEBBLE, on PEBBLE's schedule and
 budget (``MINDGAP_METHODS=file.py`` registers one from a file). The run folder defaults to
 ``runs/NAME`` (``runs/NAME-fast``); rerunning resumes: finished jobs are read back, an
 interrupted one continues from its checkpoint.
@@ -55,7 +55,7 @@ def reproduce(args) -> int:
     extra = tuple(getattr(args, "method", None) or ())
     if extra:
         if "methods" not in registry.options(args.name):
-            raise ValueError(f"--method adds learners to nav; {args.name} has its own fixed set")
+            raise ValueError(f"--method adds learners to nav and gym; {args.name} has its own fixed set")
         for name in extra:
             methods.get(name)  # an unknown name is refused here, with the registered ones
         cfg = replace(cfg, methods=extra)

@@ -245,6 +245,9 @@ class GymConfig:
     seeds: int = 5
     steps: dict = field(default_factory=lambda: dict(FULL_STEPS))
     """Environment steps per run and seed, per domain."""
+    methods: tuple[str, ...] = ()
+    """More preference learners by registered name, each beside PEBBLE on every domain with PEBBLE's
+    budget and schedule (:func:`~.prefbias_common.method_job`). Empty in the dissertation's presets."""
     levels: bool = True
     """Also train SAC on each host domain's belief env for :data:`LEVELS`' budget (``sac-level``)."""
     level_steps: int | None = None
@@ -288,7 +291,8 @@ def _steps(cfg: GymConfig, name: str) -> int:
 
 
 def jobs(cfg: GymConfig) -> list[pc.Job]:
-    """Per domain: the reference, SAC, PEBBLE, PrefBias per budget, and (host domains) SAC's level job."""
+    """Per domain: the reference, SAC, PEBBLE, any registered learners, PrefBias per budget, and (host
+    domains) SAC's level job."""
     out = []
     for w in cfg.worlds:
         domain(w)
@@ -297,6 +301,7 @@ def jobs(cfg: GymConfig) -> list[pc.Job]:
         learn = pc.Learners(*(replace(c, total_steps=n) for c in (lc.prefbias, lc.pebble, lc.sac)))
         out.append(pc.Job(f"{w}/reference", w, "reference", "reference", cfg.reference, {}))
         out += [pc.oracle_job(w, learn), pc.pebble_job(w, learn, cfg.pebble_queries)]
+        out += [pc.method_job(w, name, learn, cfg.pebble_queries) for name in cfg.methods]
         for q in cfg.budgets:
             pb = replace(learn.prefbias, queries=q)
             out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries)", f"prefbias-q{q}"))
@@ -404,7 +409,7 @@ _ORDER = {"prefbias": 0, "pebble": 1, "sac": 2, "sac-level": 3}
 
 
 def _order(rec: dict) -> tuple:
-    return (_ORDER[rec["method"]], rec["tags"].get("queries", 0))
+    return (_ORDER.get(rec["method"], 1.5), rec["tags"].get("queries", 0), rec["method"])  # a registered learner after PEBBLE
 
 
 _ROUTE_COLUMNS = ("better_route", "goal_rate", "ice_share", "sand_share", "pit_mean", "plan_return")

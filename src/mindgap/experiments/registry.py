@@ -36,6 +36,7 @@ _OPTIONS = {
     "coffee": ("participants",),
     "driving": ("seeds", "sleet", "traffic", "sanity", "importance", "answers_by"),
     "nav": ("seeds", "worlds", "methods"),
+    "gym": ("seeds", "worlds", "methods"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -60,7 +61,7 @@ def configure(
 
     ``seeds`` (table1 and the terrain experiments; table1's data-efficiency sweep keeps at most
     that many), ``worlds`` (the terrain experiments: named worlds, world files or factories),
-    ``participants`` (coffee), ``methods`` (nav: registered preference learners run beside PEBBLE).
+    ``participants`` (coffee), ``methods`` (nav, gym: registered preference learners run beside PEBBLE).
     An option the experiment does not take is refused.
     """
     from dataclasses import replace
