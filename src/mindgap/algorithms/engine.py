@@ -108,6 +108,8 @@ class Schedule:
                 raise ValueError(f"{name} ({getattr(self, name)}) must be a multiple of chunk ({self.chunk})")
         if self.sac.learning_starts % self.chunk:
             raise ValueError(f"sac.learning_starts must be a multiple of chunk ({self.chunk})")
+        if self.chunk % self.sac.train_every:
+            raise ValueError(f"chunk ({self.chunk}) must be a multiple of sac.train_every ({self.sac.train_every})")
         if self.learning_steps() >= self.total_steps:
             raise ValueError("total_steps leaves no steps for learning after the random and exploration phases")
 
@@ -128,6 +130,8 @@ class Schedule:
             del d["sac"]["survival_entropy"]
         if d.get("sac", {}).get("alpha_extra") == 0.0:  # and its alpha_extra
             del d["sac"]["alpha_extra"]
+        if d.get("sac", {}).get("train_every") == 1:  # and its train_every
+            del d["sac"]["train_every"]
         return d
 
 

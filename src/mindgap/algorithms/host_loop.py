@@ -10,7 +10,8 @@ the environment differs: one gymnasium env per seed, stepped in numpy.
 Per environment step there is one compiled dispatch, vmapped over seeds (:func:`advance`): it
 stores the transition in the seed's replay buffer (a :class:`~mindgap.data.replay.Replay`
 pytree kept on the device and donated, so feedback rounds relabel it in place), performs
-``utd`` SAC updates (a ``lax.scan``), and draws the action of the next step with the updated
+``utd`` SAC updates (a ``lax.scan``; after every ``train_every``-th step of a chunk, a second
+compiled program without them in between), and draws the action of the next step with the updated
 actor. That is the order of Stable-Baselines3/sbx with ``train_freq=1, gradient_steps=utd``
 (act, step, store, update; the next action sees every update so far), and the update itself
 is :mod:`~mindgap.algorithms.sac_loop`'s, including its explore-phase k-NN state-entropy
@@ -62,7 +63,7 @@ def first_action(loop: LoopState, cfg: SACConfig, phase: str):
     return jax.vmap(lambda ls: _act(ls, cfg, phase))(loop)
 
 
-@partial(jax.jit, static_argnames=("learner", "env", "cfg", "phase", "next_phase"), donate_argnames=("loop",))
+@partial(jax.jit, static_argnames=("learner", "env", "cfg", "phase", "next_phase", "update"), donate_argnames=("loop",))
 def advance(
     loop: LoopState,
     model,
@@ -79,8 +80,10 @@ def advance(
     cfg,
     phase: str,
     next_phase: str,
+    update: bool = True,
 ):
-    """Store every seed's transition, update its SAC, and draw its next action (all ``[S, ·]``).
+    """Store every seed's transition, update its SAC (unless ``update`` is off: the steps between
+    updates of ``SACConfig.train_every``), and draw its next action (all ``[S, ·]``).
 
     ``reset_obs``: the observation the next step starts from (a fresh episode's where the
     step ended one, else ``next_obs``).
@@ -97,7 +100,7 @@ def advance(
         replay = replay_add(ls.replay, ls.env, a, o2, r_env, r, term, ls.t)
         key, k_upd = jax.random.split(ls.key)
         sac = ls.sac
-        if phase != "random":
+        if phase != "random" and update:
             sac = sac_updates(sac, replay, k_upd, ls.steps, sac_cfg, phase, cfg.knn)
         done = term | trunc
         t = jnp.where(done, 0, ls.t + 1)
@@ -196,6 +199,7 @@ def run_host(
             loop, act = advance(
                 loop, c.model, w, act, nxt, rew, term, trunc, start,
                 learner=learner, env=env, cfg=cfg, phase=phase, next_phase=phase_at(step + i + 1, cfg),
+                update=(i + 1) % sac_cfg.train_every == 0,
             )  # fmt: skip
         live["act"] = act
         return c._replace(loop=loop)

@@ -48,6 +48,10 @@ class SACConfig:
     """Transitions per update."""
     utd: int = 1
     """Updates per environment step (update-to-data ratio)."""
+    train_every: int = 1
+    """Environment steps between updates (Stable-Baselines3's ``train_freq``): the ``utd`` updates
+    follow every ``train_every``-th step of a chunk, so 2 with ``utd`` 1 is half an update per step.
+    Counted from each chunk's start, so a run's chunks are a multiple of it."""
     alpha: float | None = None
     """Fixed entropy coefficient; None tunes it automatically."""
     init_alpha: float = 1.0
@@ -107,7 +111,7 @@ class SACConfig:
             raise ValueError(
                 f"SAC survival_entropy must be one of {', '.join(SURVIVAL_ENTROPY)}, got {self.survival_entropy!r}"
             )
-        for name in ("utd", "batch_size", "n_step"):
+        for name in ("utd", "train_every", "batch_size", "n_step"):
             if getattr(self, name) < 1:
                 raise ValueError(f"SAC {name} must be at least 1, got {getattr(self, name)}")
 

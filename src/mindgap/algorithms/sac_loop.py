@@ -4,7 +4,8 @@ A chunk of training is :func:`run_chunk`: per step it acts (uniformly at random 
 ``"random"`` phase, from the policy otherwise; with ``SACConfig.noise_color`` > 0 both draw
 on one coloured-noise sequence per episode, :mod:`~mindgap.algorithms.colored_noise`),
 steps the world, stores the transition with the reward the agent optimises (the world's,
-or a learned model's), restarts finished episodes, and performs ``utd`` SAC updates (none
+or a learned model's), restarts finished episodes, and performs ``utd`` SAC updates (after every
+``train_every``-th step of the chunk; none
 in the ``"random"`` phase; with a k-nearest-neighbour state-entropy reward in the
 ``"explore"`` phase of PEBBLE, and added with a decaying weight to the reward in
 ``"train"`` when ``SACConfig.entropy_bonus`` > 0). The phase is static, so vmapping a
@@ -157,7 +158,7 @@ def run_chunk(
         raise ValueError(f"phase must be one of {PHASES}, got {phase!r}")
     n = n_actions(env)
 
-    def body(ls: LoopState, _):
+    def body(ls: LoopState, i):
         key, k_act, k_env, k_reset, k_upd = jax.random.split(ls.key, 5)
         obs = env.observe(ls.env, world_params)
         noise, eps = ls.noise, None  # eps None: white noise
@@ -191,12 +192,21 @@ def run_chunk(
         state = jax.tree.map(lambda a, b: jnp.where(done, a, b), env.reset(k_reset, world_params), out.state)
         sac = ls.sac
         if phase != "random":
-            sac = sac_updates(sac, replay, k_upd, ls.steps, cfg, phase, knn, discrete=bool(n))
+            sac = _maybe_update(sac, i, cfg, lambda s: sac_updates(s, replay, k_upd, ls.steps, cfg, phase, knn, bool(n)))
         t = jnp.where(done, 0, ls.t + 1)
         return LoopState(sac, replay, state, t, key, ls.steps + 1, noise), None
 
-    ls, _ = jax.lax.scan(body, ls, None, length=n_steps)
+    # the step's index within the chunk: the same for every seed, so under vmap the update's cond stays a branch
+    steps = jnp.arange(n_steps) if cfg.train_every > 1 else None
+    ls, _ = jax.lax.scan(body, ls, steps, length=n_steps)
     return ls
+
+
+def _maybe_update(sac: SACState, i, cfg: SACConfig, update) -> SACState:
+    """``update(sac)`` after every ``cfg.train_every``-th step of a chunk (``i``: the step's index in it)."""
+    if cfg.train_every == 1:
+        return update(sac)
+    return jax.lax.cond((i + 1) % cfg.train_every == 0, update, lambda s: s, sac)
 
 
 def sac_updates(
