@@ -2,18 +2,11 @@
 
 import jax.numpy as jnp
 import numpy as np
+from test_terrain_planning import CORRIDOR  # a straight corridor from the start to the goal
 
 from mindgap.envs.terrain import world_from_dict
 from mindgap.planning.reward_plan import plan_rewards, policy_values, state_id
 from mindgap.planning.terrain import discretise, plan
-
-CORRIDOR = {
-    "horizon": 30,
-    "start_jitter": 0.0,
-    "layout": "#######\n#S...G#\n#######",
-    "rewards": {"goal": 10.0, "step": -1.0},
-    "dynamics": {"floor": {"noise": 0.02}},
-}
 
 
 def test_the_worlds_own_reward_gives_the_worlds_plan():
