@@ -36,6 +36,16 @@ def run_folder(tmp_path):
     return root
 
 
+def test_a_run_with_added_learners_finds_their_jobs(run_folder):
+    from mindgap.experiments.reward_optimum import _run_job
+
+    config = json.loads((run_folder / "config.json").read_text())
+    (run_folder / "config.json").write_text(json.dumps({**config, "methods": ["drlhp"]}))
+    (run_folder / "jobs" / "nav1__drlhp-q30.json").write_text("{}")
+    name, cfg, job, _ = _run_job(run_folder, "nav1/drlhp-q30")
+    assert name == "nav" and cfg.methods == ("drlhp",) and job.method == "drlhp" and job.cfg.queries == 30
+
+
 @pytest.fixture
 def true_reward(monkeypatch):
     params = load_world("nav1").params

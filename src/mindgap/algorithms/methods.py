@@ -59,6 +59,12 @@ class Method:
     answers: str
     tag: str = ""
 
+    @property
+    def learns_reward_from_preferences(self) -> bool:
+        """Whether it learns a reward from preference answers (what an experiment's learners beside
+        PEBBLE, and a plan on a learned reward, need)."""
+        return self.answers == "preferences" and self.learned_reward is not None
+
     def __post_init__(self):
         if self.answers not in ANSWERS:
             raise ValueError(f"{self.name}: answers must be one of {', '.join(ANSWERS)}, got {self.answers!r}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from ..experiments import registry
 from ..experiments.registry import NAMES as EXPERIMENTS
 from .reproduce_terrain import NAMES as TERRAIN_EXPERIMENTS
 
@@ -78,7 +79,7 @@ def run(args) -> int:
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
-    if args.method and args.name not in ("nav", "gym"):
+    if args.method and "methods" not in registry.options(args.name):
         raise ValueError("--method adds learners to nav and gym; the other experiments have their own fixed sets")
     for flag in ("sleet", "traffic", "sanity", "importance", "answers_by"):
         if getattr(args, flag) is not None and args.name != "driving":

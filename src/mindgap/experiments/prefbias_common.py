@@ -184,7 +184,7 @@ def method_job(world: str, name: str, learn: Learners, queries: int) -> Job:
         ValueError: ``name`` is not registered, or is not a preference learner.
     """
     method = methods.get(name)
-    if method.answers != "preferences" or method.learned_reward is None:
+    if not method.learns_reward_from_preferences:
         raise ValueError(f"{name} learns no reward from preferences: an experiment's learners beside PEBBLE must")
     schedule = {f.name: getattr(learn.pebble, f.name) for f in dataclasses.fields(Schedule) if f.name != "method"}
     cfg = dataclasses.replace(method.preset("full"), **{**schedule, "queries": queries})

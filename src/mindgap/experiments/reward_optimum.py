@@ -46,6 +46,7 @@ from ..planning.finite_horizon import start_distribution
 from ..planning.reward_plan import plan_rewards, policy_values
 from . import prefbias_common as pc
 from . import registry
+from ._runfolder import record_path
 from .world_measures import experiment_world, has_map, route_of
 
 ROLLOUTS = 20
@@ -62,15 +63,21 @@ def _run_job(root: Path, key: str):
     preset = registry.preset_of(name, stored)
     if preset == "custom":
         raise ValueError(f"{root}: a custom configuration of {name}; reward-plan reads full and fast runs only")
-    worlds = stored.get("worlds")
-    if "worlds" not in registry.options(name):
+    taken = registry.options(name)
+    if "worlds" not in taken:
         raise ValueError(f"{name} is not a terrain experiment: reward-plan reads nav, priors and sampling runs")
-    cfg = registry.configure(name, preset, seeds=stored.get("seeds"), worlds=tuple(worlds) if worlds else None)
+    # the options the command line set (seeds, worlds, and nav's or gym's added learners), as the run has them
+    given = {
+        o: tuple(v) if isinstance(v, list) else v
+        for o in ("seeds", "worlds", "methods")
+        if o in taken and (v := stored.get(o))
+    }
+    cfg = registry.configure(name, preset, **given)
     jobs = {j.key: j for j in registry.module(name).jobs(cfg)}
     if key not in jobs:
         raise ValueError(f"{name} has no job {key!r}: its jobs are named like {', '.join(list(jobs)[:6])}, …")
     job = jobs[key]
-    record_file = root / "jobs" / f"{key.replace('/', '__')}.json"
+    record_file = record_path(root, key)
     if not record_file.is_file():
         raise ValueError(f"{key} has not finished in {root} (no record in jobs/)")
     return name, cfg, job, json.loads(record_file.read_text())
@@ -87,7 +94,7 @@ def reward_plan(root: Path, key: str, rollouts: int = ROLLOUTS) -> dict:
     root = Path(root)
     name, cfg, job, record = _run_job(root, key)
     method = methods.get(job.method)
-    if method.answers != "preferences" or method.learned_reward is None:
+    if not method.learns_reward_from_preferences:
         raise ValueError(
             f"{key}: {job.method} learns no reward from preferences; reward-plan reads PrefBias and PEBBLE jobs"
         )
