@@ -22,7 +22,14 @@ def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
     cfg = eps_config("fast", lam=2.5, sac=SACConfig(hidden=(16, 16), batch_size=32, learning_starts=250))
     assert cfg.agent_sac().alpha == pytest.approx(2.5 / cfg.nats_per_unit)  # λ H_π / s_H: SAC's own α (reward scale 1)
     assert eps_config("fast", lam=2.5, nats_per_unit=1.0).agent_sac().alpha == pytest.approx(2.5)
-    assert eps_config("fast", method="drlhp").agent_sac().alpha is None  # the baseline tunes α
+    # DRLHP's α: 1/s_H in the presets (u_H read in nats), SAC's own (tuned) with drlhp_alpha="sac"
+    assert eps_config("fast", method="drlhp").agent_sac().alpha == pytest.approx(1.0 / cfg.nats_per_unit)
+    assert eps_config("fast", method="drlhp", nats_per_unit=2.0).agent_sac().alpha == pytest.approx(0.5)
+    assert eps_config("fast", method="drlhp", drlhp_alpha="sac").agent_sac() == eps_config("fast").sac
+    assert "drlhp_alpha" not in EPSConfig().as_dict()  # the field's default: earlier run folders keep their meaning
+    assert eps_config("fast").as_dict()["drlhp_alpha"] == "nats"
+    with pytest.raises(ValueError, match="drlhp_alpha must be one of sac, nats"):
+        eps_config("fast", drlhp_alpha="tuned")
     # policy_entropy "sac": SAC's own tuned α plus λ/s_H, so that at λ = 0 the agent is SAC on r_A
     sac = eps_config("fast", lam=2.5, policy_entropy="sac").agent_sac()
     assert sac.alpha is None and sac.alpha_extra == pytest.approx(2.5 / cfg.nats_per_unit)

@@ -30,7 +30,8 @@ T_A is not fitted and H_T leaves the reward; with ``absorbing`` u_H learns absor
 ended episode's λ-term goes on at their value (:mod:`~mindgap.algorithms.eps_config`).
 
 ``method="drlhp"`` is the DRLHP baseline of §4.4.1.1: the same preferences and ensemble, the
-agent optimising the standardised u_H alone (no r_A, no H_T; SAC's α tuned as usual).
+agent optimising the standardised u_H alone (no r_A, no H_T; SAC's α fixed at 1/s_H in the presets,
+``EPSConfig.drlhp_alpha``).
 T_A is not retrained once the query budget is spent: the reward is then fixed, as in the
 engine's other methods.
 
@@ -57,7 +58,7 @@ from ..models.reward_ensemble import RewardState, ensemble_reward, preference_pr
 from ..teachers.expectation import ExpectationTeacher
 from ..teachers.host import HostTeacher
 from .engine import Learner, WorldArgs, run_record
-from .eps_config import EPSConfig, eps_agent_sac
+from .eps_config import EPSConfig, drlhp_agent_sac, eps_agent_sac
 from .eps_reward import (
     EPSRewardParams,
     ExactSurrogate,
@@ -224,9 +225,9 @@ def _asks(cfg: EPSConfig) -> bool:
 EPS_LEARNER = _learner(_select, _learn, _reward, eps_agent_sac)
 """EPS (Algorithm 3) as a :class:`~mindgap.algorithms.engine.Learner`: SAC's α is λ/s_H (Eq. 4.6's H_π)."""
 
-DRLHP_LEARNER = _learner(_drlhp_select, _drlhp_learn, _drlhp_reward, lambda cfg: cfg.sac)
+DRLHP_LEARNER = _learner(_drlhp_select, _drlhp_learn, _drlhp_reward, drlhp_agent_sac)
 """Expectation-DRLHP (§4.4.1.1) as a :class:`~mindgap.algorithms.engine.Learner`: the same answers and
-ensemble, the agent on the standardised u_H alone with SAC's α tuned as configured."""
+ensemble, the agent on the standardised u_H alone with SAC's α as ``drlhp_alpha`` says."""
 
 
 def prepare(world, cfg: EPSConfig, seeds: int, person, person_name: str = "biased"):

@@ -20,6 +20,7 @@ SURROGATES = ("learned", "exact")
 OFFSETS = ("cost", "centred", "none")
 JUDGED = ("transitions", "decisions")
 POLICY_ENTROPY = ("lambda", "sac")
+DRLHP_ALPHA = ("sac", "nats")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,6 +73,14 @@ class EPSConfig(Schedule):
     policy optimiser of Algorithm 3 keeps its MaxEnt term, so that at λ = 0 EPS is SAC on r_A ("the
     lower the λ, the closer the behavior is to the SAC agent", §4.4.1.4). Measured beside each other in
     docs/experiments/eps.md, "What λ = 0 means"."""
+    drlhp_alpha: str = "sac"
+    """DRLHP's entropy coefficient (EPS's is λ/s_H, ``policy_entropy``). ``sac``: SAC's own, as
+    ``sac`` configures it (tuned to its target entropy unless fixed). ``nats``: fixed at reward_scale/s_H, so that one unit of the standardised u_H
+    weighs what it stands for, s_H nats of the person's log π_H (+ log T_H), against one nat of the
+    policy's entropy — the objective whose optimum is the person's expected policy (Eq. 4.4's KL
+    with r_A left out), and Christiano et al. (2017)'s recipe of a reward normalised to a fixed spread
+    under a fixed entropy bonus. The presets set ``nats``; the field's default keeps earlier run
+    folders' meaning (docs/experiments/driving.md, "Why DRLHP brakes first in fewer seeds than EPS")."""
     absorbing: str | None = None
     """Absorbing states for u_H (Kostrikov et al. 2019, as :mod:`~mindgap.algorithms.pbrl`'s): None (the
     default), or ``single`` / ``terminal``. With them the queried segments keep the steps after an
@@ -98,6 +107,8 @@ class EPSConfig(Schedule):
             raise ValueError(f"judged must be one of {', '.join(JUDGED)}, got {self.judged!r}")
         if self.policy_entropy not in POLICY_ENTROPY:
             raise ValueError(f"policy_entropy must be one of {', '.join(POLICY_ENTROPY)}, got {self.policy_entropy!r}")
+        if self.drlhp_alpha not in DRLHP_ALPHA:
+            raise ValueError(f"drlhp_alpha must be one of {', '.join(DRLHP_ALPHA)}, got {self.drlhp_alpha!r}")
         if self.absorbing is not None and self.absorbing not in ABSORBING_STATES:
             raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)} or None, got {self.absorbing!r}")
         check_sampler(self.sampler, belief=False)
@@ -119,17 +130,30 @@ class EPSConfig(Schedule):
             del d["judged"]
         if self.policy_entropy == "lambda":
             del d["policy_entropy"]
+        if self.drlhp_alpha == "sac":
+            del d["drlhp_alpha"]
         return d
 
     def agent_sac(self) -> SACConfig:
-        """The SAC the agent runs: :func:`eps_agent_sac` for EPS, as configured for DRLHP."""
-        return eps_agent_sac(self) if self.method == "eps" else self.sac
+        """The SAC the agent runs: :func:`eps_agent_sac` for EPS, :func:`drlhp_agent_sac` for DRLHP."""
+        return eps_agent_sac(self) if self.method == "eps" else drlhp_agent_sac(self)
 
 
 def eps_agent_sac(cfg: EPSConfig) -> SACConfig:
     """EPS's SAC: Eq. 4.6's λ·H_π as the entropy coefficient (:func:`~.eps_reward.eps_sac_config`)."""
     return eps_sac_config(cfg.sac, cfg.lam, cfg.nats_per_unit, cfg.policy_entropy)
 
+
+def drlhp_agent_sac(cfg: EPSConfig) -> SACConfig:
+    """DRLHP's SAC: as configured, with α fixed at reward_scale/s_H when ``cfg.drlhp_alpha`` is ``nats``
+    (its survival entropy stays as configured: u_H has no λ-term constant to carry it)."""
+    if cfg.drlhp_alpha == "sac":
+        return cfg.sac
+    return dataclasses.replace(cfg.sac, alpha=cfg.sac.reward_scale / cfg.nats_per_unit)
+
+
+_PRESET = dict(drlhp_alpha="nats")
+"""What both presets set on top of the fields' defaults (a default kept for earlier run folders)."""
 
 _FAST = dict(
     **FAST_SCHEDULE,
@@ -143,6 +167,6 @@ def eps_config(preset: str = "full", **overrides) -> EPSConfig:
     """A preset with ``overrides`` applied, checked (``fast``: tiny networks, 1500 steps; for tests)."""
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}: choose from {', '.join(PRESETS)}")
-    cfg = EPSConfig(**{**(_FAST if preset == "fast" else {}), **overrides})
+    cfg = EPSConfig(**{**_PRESET, **(_FAST if preset == "fast" else {}), **overrides})
     cfg.check()
     return cfg

@@ -31,7 +31,7 @@ the world, and what the reward says of the optimal and the person's expected pla
 
 mindgap design driving --run DIR [--episodes N] [--answers-by rollout|rollout-behaviour|expectation|decisions] [--seed S]
 mindgap design driving --run DIR --learner drlhp|eps [--coin] [--only PID] [--exact PID] [--road S] [--lam L]
-                       [--survival-entropy paid|neutral] [--alpha A] [--offset cost|centred|none]
+                       [--survival-entropy paid|neutral] [--alpha A|tuned] [--offset cost|centred|none]
                        [--absorbing single|terminal|none] [--seeds N]
 
 The driving study's participant gates on a run's participants, before any learner
@@ -123,7 +123,9 @@ def add_parser(sub) -> None:
     v.add_argument("--road", type=float, help="control: the sleet of the road driven on (default the run's)")
     v.add_argument("--lam", type=float, help="control: EPS's λ (default the preset's)")
     v.add_argument("--survival-entropy", choices=("paid", "neutral"), help="control: SAC's survival_entropy")
-    v.add_argument("--alpha", type=float, help="control: DRLHP's SAC entropy coefficient, fixed (default: tuned)")
+    v.add_argument(
+        "--alpha", type=_alpha, help="control: DRLHP's SAC entropy coefficient, fixed, or 'tuned' (default: 1/s_H)"
+    )
     v.add_argument(
         "--offset",
         choices=("cost", "centred", "none"),
@@ -135,6 +137,19 @@ def add_parser(sub) -> None:
         help="control: u_H's absorbing states (default the preset's)",
     )
     v.add_argument("--seeds", type=int, help="control: seeds (default the preset's)")
+
+
+def _alpha(text: str) -> float | str:
+    """``--alpha``: a positive number, or ``tuned``."""
+    if text == "tuned":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a positive number or 'tuned', got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"a positive number or 'tuned', got {text!r}")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:

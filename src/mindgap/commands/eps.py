@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         args.belief_env = world.name  # a learned model of the env itself
     world = with_belief_env(world, args)
     preset = "fast" if args.fast else "full"
-    base = eps_config(preset) if args.fast else EPSConfig()
+    base = eps_config(preset)
     fill_from_preset(args, base)
     over = dict(
         method=args.method,

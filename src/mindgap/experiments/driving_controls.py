@@ -18,8 +18,9 @@ own, with one thing changed, and measures the behaviours the experiment measures
 * ``road``: the sleet of the road the learner drives on; ``lam``: EPS's λ;
   ``survival_entropy``: :attr:`~mindgap.algorithms.sac.SACConfig.survival_entropy`; ``offset`` and
   ``absorbing``: :attr:`~mindgap.algorithms.eps_config.EPSConfig.offset` and ``.absorbing``;
-  ``alpha``: DRLHP's SAC entropy coefficient fixed (:attr:`~mindgap.algorithms.sac.SACConfig.alpha`)
-  instead of tuned (EPS's is λ/s_H).
+  ``alpha``: DRLHP's SAC entropy coefficient fixed at another value (:attr:`~mindgap.algorithms.sac.SACConfig.alpha`),
+  or ``"tuned"`` to a target entropy, instead of the presets' 1/s_H
+  (:attr:`~mindgap.algorithms.eps_config.EPSConfig.drlhp_alpha`; EPS's is λ/s_H).
 
 ``mindgap design driving --run DIR --learner drlhp|eps [...]`` runs one and prints its record.
 """
@@ -59,7 +60,7 @@ class Control:
     absorbing: str | None = None
     seeds: int | None = None
     answers_by: str | None = None
-    alpha: float | None = None
+    alpha: float | str | None = None
 
     def __post_init__(self):
         if self.method not in ("drlhp", "eps"):
@@ -68,8 +69,9 @@ class Control:
             raise ValueError("--exact asks no queries: it does not combine with --coin or --only")
         if self.road is not None:
             check_sleet_level(self.road)
-        if self.alpha is not None and (self.method != "drlhp" or not self.alpha > 0):
-            raise ValueError("--alpha fixes DRLHP's entropy coefficient (a positive number); EPS's is λ/s_H")
+        tuned = self.alpha == "tuned"
+        if self.alpha is not None and (self.method != "drlhp" or not (tuned or isinstance(self.alpha, float) and self.alpha > 0)):
+            raise ValueError("--alpha sets DRLHP's entropy coefficient (a positive number or 'tuned'); EPS's is λ/s_H")
 
     @property
     def name(self) -> str:
@@ -91,7 +93,8 @@ def configure(cfg: dr.DrivingConfig, c: Control) -> dr.DrivingConfig:
     if c.survival_entropy is not None:
         eps = dataclasses.replace(eps, sac=dataclasses.replace(eps.sac, survival_entropy=c.survival_entropy))
     if c.alpha is not None:
-        eps = dataclasses.replace(eps, sac=dataclasses.replace(eps.sac, alpha=c.alpha))
+        fixed = None if c.alpha == "tuned" else c.alpha
+        eps = dataclasses.replace(eps, drlhp_alpha="sac", sac=dataclasses.replace(eps.sac, alpha=fixed))
     if c.lam is not None:
         eps = dataclasses.replace(eps, lam=c.lam)
     if c.offset is not None:
