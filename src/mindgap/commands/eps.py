@@ -105,7 +105,6 @@ def run(args: argparse.Namespace) -> int:
     from .. import rng
     from .._io import atomic_write
     from ..algorithms.eps import train
-    from ..algorithms.eps_config import EPSConfig
     from ..algorithms.eps_maps import surrogate_maps
     from ..algorithms.expected_policy import ExpectedPolicyConfig, expectation_teacher
     from ..algorithms.explicability import explicability_scores

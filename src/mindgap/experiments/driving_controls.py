@@ -70,7 +70,9 @@ class Control:
         if self.road is not None:
             check_sleet_level(self.road)
         tuned = self.alpha == "tuned"
-        if self.alpha is not None and (self.method != "drlhp" or not (tuned or isinstance(self.alpha, float) and self.alpha > 0)):
+        if self.alpha is not None and (
+            self.method != "drlhp" or not (tuned or isinstance(self.alpha, float) and self.alpha > 0)
+        ):
             raise ValueError("--alpha sets DRLHP's entropy coefficient (a positive number or 'tuned'); EPS's is λ/s_H")
 
     @property
