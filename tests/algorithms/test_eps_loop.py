@@ -30,6 +30,9 @@ def test_config_sets_the_entropy_weight_and_rejects_bad_settings():
     assert eps_config("fast").as_dict()["drlhp_alpha"] == "nats"
     with pytest.raises(ValueError, match="drlhp_alpha must be one of sac, nats"):
         eps_config("fast", drlhp_alpha="tuned")
+    with pytest.raises(ValueError, match="set drlhp_alpha to sac"):  # a fixed α would be overridden silently
+        eps_config("fast", method="drlhp", sac=SACConfig(alpha=0.5))
+    assert eps_config("fast", method="drlhp", drlhp_alpha="sac", sac=SACConfig(alpha=0.5)).agent_sac().alpha == 0.5
     # policy_entropy "sac": SAC's own tuned α plus λ/s_H, so that at λ = 0 the agent is SAC on r_A
     sac = eps_config("fast", lam=2.5, policy_entropy="sac").agent_sac()
     assert sac.alpha is None and sac.alpha_extra == pytest.approx(2.5 / cfg.nats_per_unit)

@@ -343,7 +343,14 @@ def test_a_learner_control_changes_one_thing_and_resumes(stand_ins, tmp_path, ca
     cfg, person, _ = seen[-1]
     assert cfg.surrogate == "exact" and person.cfg.use_belief is False  # rollout answers: log π_H per step
     assert (out / "controls" / dc.Control("drlhp", exact=pids[0], road=0.0).name / "record.json").is_file()
+    assert seen[-1][0].agent_sac().alpha == pytest.approx(1.0 / cfg.nats_per_unit)  # DRLHP's α: the preset's 1/s_H
+    for alpha, want in (("tuned", None), ("0.5", 0.5)):  # the preset before it, and any other fixed value
+        assert main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--coin", "--alpha", alpha]) == 0
+        assert seen[-1][0].drlhp_alpha == "sac" and seen[-1][0].agent_sac().alpha == want
     capsys.readouterr()
+    with pytest.raises(SystemExit):  # argparse: a number or 'tuned'
+        main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--alpha", "-1"])
+    assert "a positive number or 'tuned'" in capsys.readouterr().err
     assert main(["design", "driving", "--run", str(out), "--learner", "drlhp", "--only", "nobody"]) == 2
     assert not (out / "controls" / dc.Control("drlhp", only="nobody").name).exists()  # nothing half-written
     assert main(["design", "driving", "--run", str(out), "--coin"]) == 2

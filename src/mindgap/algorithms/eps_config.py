@@ -109,6 +109,8 @@ class EPSConfig(Schedule):
             raise ValueError(f"policy_entropy must be one of {', '.join(POLICY_ENTROPY)}, got {self.policy_entropy!r}")
         if self.drlhp_alpha not in DRLHP_ALPHA:
             raise ValueError(f"drlhp_alpha must be one of {', '.join(DRLHP_ALPHA)}, got {self.drlhp_alpha!r}")
+        if self.method == "drlhp" and self.drlhp_alpha == "nats" and self.sac.alpha is not None:
+            raise ValueError("DRLHP's α is 1/s_H (drlhp_alpha nats): set drlhp_alpha to sac to fix it at sac.alpha")
         if self.absorbing is not None and self.absorbing not in ABSORBING_STATES:
             raise ValueError(f"absorbing must be one of {', '.join(ABSORBING_STATES)} or None, got {self.absorbing!r}")
         check_sampler(self.sampler, belief=False)
