@@ -25,7 +25,9 @@ def test_the_variants_of_one_config_are_separate_learners():
     assert methods.PREFBIAS.learner(None) is prefbias.LEARNER
     cfg = methods.EPS.preset("fast", lam=2.5, nats_per_unit=1.0)
     assert eps.EPS_LEARNER.agent_sac(cfg).alpha == pytest.approx(2.5)  # Eq. 4.6's H_π: α = λ/s_H
-    assert eps.DRLHP_LEARNER.agent_sac(cfg).alpha is None  # the baseline tunes α
+    assert eps.DRLHP_LEARNER.agent_sac(cfg).alpha == pytest.approx(1.0)  # the baseline: u_H in nats, α = 1/s_H
+    tuned = methods.EXPECTATION_DRLHP.preset("fast", drlhp_alpha="sac")
+    assert eps.DRLHP_LEARNER.agent_sac(tuned).alpha is None  # or SAC's own, tuned
 
 
 def test_train_refuses_what_a_method_cannot_run():
