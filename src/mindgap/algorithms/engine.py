@@ -21,6 +21,12 @@ answered)`` (the round is then one compiled program), or a
 jit between the round's two compiled halves. A :class:`~mindgap.envs.gym_world.GymWorld` runs the same
 schedule with its envs stepped on the host (:mod:`~mindgap.algorithms.host_loop`). Runs checkpoint after every chunk to
 ``OUT/checkpoint.npz``, resume from it, and refuse a folder made with other settings.
+
+A run may train some of its seeds alone (``seed_ids``, a *seed slice*: a full run's job can take
+longer than a session has, :mod:`~mindgap.experiments._seed_slices`): a seed's key comes from its
+index in the whole run (:func:`seed_keys`), never from how many seeds train beside it. (Under
+``vmap``, JAX draws every row's random bits of ``rbg`` keys from the batch's first key, so the
+numbers a seed draws beside others are not those it draws alone, except seed 0's.)
 """
 
 from __future__ import annotations
@@ -325,8 +331,29 @@ def run_chunk_all(carry: Carry, w: WorldArgs, learner: Learner, env: Env, cfg, p
     return carry._replace(loop=jax.vmap(one)(carry))
 
 
-def _evaluate(carry: Carry, world, episodes: int, step: int, base_seed: int):
-    keys = jax.random.split(rng.key(10_000 + base_seed + step), carry.queries.shape[0])
+def which_seeds(seeds: int, seed_ids=None) -> tuple[int, ...]:
+    """The seeds a run of ``seeds`` seeds trains: all of them, or ``seed_ids`` alone (a seed slice).
+
+    Raises:
+        ValueError: ``seed_ids`` empty, repeated, or outside ``0 … seeds − 1``.
+    """
+    if seed_ids is None:
+        return tuple(range(seeds))
+    ids = tuple(int(i) for i in seed_ids)
+    if not ids or len(set(ids)) != len(ids) or not all(0 <= i < seeds for i in ids):
+        raise ValueError(f"seed_ids must be distinct seeds among 0..{seeds - 1}, got {list(ids)}")
+    return ids
+
+
+def seed_keys(seed: int, seeds: int, ids: tuple[int, ...] | None = None) -> jax.Array:
+    """Keys ``[len(ids)]`` of seeds ``ids`` of a run of ``seeds``: rows of ``split(key(seed), seeds)``,
+    so that a seed has the same key whether it trains beside the others or alone (a seed slice)."""
+    keys = jax.random.split(rng.key(seed), seeds)
+    return keys if ids is None or tuple(ids) == tuple(range(seeds)) else keys[np.asarray(ids)]
+
+
+def _evaluate(carry: Carry, world, episodes: int, step: int, base_seed: int, seeds: int, ids: tuple[int, ...]):
+    keys = seed_keys(10_000 + base_seed + step, seeds, ids)
     actors = carry.loop.sac.params.actor
     return jax.vmap(lambda k, a: evaluate(k, world.env, a, world.params, episodes, world.horizon))(keys, actors)
 
@@ -375,7 +402,18 @@ def preference_teacher(world, cfg, seeds: int, teacher, belief: str | None, *, w
 
 
 def run(
-    world, learner: Learner, cfg, teacher, meta: dict, seeds: int, *, out=None, progress=True, fresh=False, oracle=None
+    world,
+    learner: Learner,
+    cfg,
+    teacher,
+    meta: dict,
+    seeds: int,
+    *,
+    out=None,
+    progress=True,
+    fresh=False,
+    oracle=None,
+    seed_ids=None,
 ) -> dict:
     """Train ``seeds`` seeds of ``learner`` on ``world`` with ``teacher``; checkpoint to ``out``.
 
@@ -384,31 +422,48 @@ def run(
             None when the method asks nobody (the SAC oracle).
         meta: the run record (:func:`run_record` plus the method's own entries).
         oracle: :attr:`WorldArgs.oracle`.
+        seed_ids: train only these of the ``seeds`` seeds (a seed slice, recorded in the run record):
+            each with the keys, evaluation keys and curve rows it has in the whole run (:func:`seed_keys`).
 
     Returns:
         dict with ``curve`` (rows of seed, step, return, queries), ``final_returns`` [seeds,
         episodes], ``paths`` (per seed, greedy rollouts through ``world.trace``), ``config``
-        (the run record) and the final ``carry``.
+        (the run record) and the final ``carry``; with ``seed_ids``, ``seeds`` is theirs.
     """
+    ids = which_seeds(seeds, seed_ids)
+    if seed_ids is not None:
+        meta = {**meta, "seed_ids": list(ids)}
     if isinstance(world, GymWorld):  # gymnasium envs step on the host
         from .host_loop import run_host
 
         return run_host(
-            world, learner, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle
+            world, learner, cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle, ids=ids
         )
     cfg.check()
     check_env(world.env, who=cfg.method, discrete_actions=True)
     env, w = world.env, WorldArgs(world.params, world.obs_units(), oracle)
-    carry = init_carry(jax.random.split(rng.key(cfg.seed), seeds), learner, env, world.params, cfg)
+    carry = init_carry(seed_keys(cfg.seed, seeds, ids), learner, env, world.params, cfg)
 
     def chunk(c, phase, step):
         return run_chunk_all(c, w, learner, env, cfg, phase)
 
     def evaluate_at(c, episodes, step):
-        return _evaluate(c, world, episodes, step, cfg.seed)
+        return _evaluate(c, world, episodes, step, cfg.seed, seeds, ids)
 
     return drive(
-        world, learner, cfg, teacher, meta, carry, w, chunk, evaluate_at, out=out, progress=progress, fresh=fresh
+        world,
+        learner,
+        cfg,
+        teacher,
+        meta,
+        carry,
+        w,
+        chunk,
+        evaluate_at,
+        out=out,
+        progress=progress,
+        fresh=fresh,
+        ids=ids,
     )
 
 
@@ -426,6 +481,7 @@ def drive(
     out=None,
     progress=True,
     fresh=False,
+    ids: tuple[int, ...] | None = None,
 ) -> dict:
     """The schedule every run follows, whatever steps its world: phases, rounds, evaluations, checkpoints.
 
@@ -434,11 +490,13 @@ def drive(
         chunk: ``(carry, phase, step) → carry`` after ``cfg.chunk`` environment steps from ``step``.
         evaluate_at: ``(carry, episodes, step) → (returns [S, E], observations [S, E, T+1, d], alive [S, E, T])``
             of greedy episodes (their keys derived from ``step``).
+        ids: each carried seed's index in the whole run, as curve rows name it (default ``0 … S − 1``).
 
     Returns:
         the result dict of :func:`run`.
     """
     env, seeds = world.env, carry.queries.shape[0]
+    ids = tuple(range(seeds)) if ids is None else ids
     host = teacher is not None and not hasattr(teacher, "answer")
 
     def one_round(c):
@@ -482,7 +540,7 @@ def drive(
         if step % cfg.eval_every == 0 or step == cfg.total_steps:
             rets = np.asarray(evaluate_at(carry, cfg.eval_episodes, step)[0])
             q = np.asarray(carry.queries)
-            rows += [(s, step, float(rets[s].mean()), int(q[s])) for s in range(seeds)]
+            rows += [(ids[s], step, float(rets[s].mean()), int(q[s])) for s in range(seeds)]
             if bar is not None:
                 bar.set_postfix(ret=f"{rets.mean():.1f}", queries=int(q.mean()))
         if out is not None:

@@ -29,12 +29,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import rng
 from ..data.replay import replay_add, terminal_bonus
 from ..envs.interface import Env, check_env
 from ..models.actor import greedy_action, sample_action
 from .colored_noise import colored_noise
-from .engine import Carry, Learner, WorldArgs, drive, init_carry, phase_at
+from .engine import Carry, Learner, WorldArgs, drive, init_carry, phase_at, seed_keys, which_seeds
 from .sac import SACConfig
 from .sac_loop import LoopState, sac_updates
 
@@ -115,14 +114,19 @@ def _greedy(actors, obs):
     return jax.vmap(greedy_action)(actors, obs)
 
 
-def evaluate_host(world, actors, episodes: int, seed: int):
+def evaluate_host(world, actors, episodes: int, seed: int, ids: tuple[int, ...] | None = None):
     """Greedy rollouts of every seed's actor on fresh gymnasium envs, ``horizon`` steps at most.
+
+    Episode ``e`` of the seed whose index in the whole run is ``i`` (``ids``, default ``0 … S − 1``)
+    starts from ``world.make(seed + i · episodes + e)``, however many seeds are evaluated.
 
     Returns:
         (returns [S, E], observations [S, E, T+1, d], alive [S, E, T]); an ended episode stays put.
     """
     seeds = jax.tree.leaves(actors)[0].shape[0]
-    envs, first = zip(*(world.make(seed + i) for i in range(seeds * episodes)), strict=True)
+    ids = range(seeds) if ids is None else ids
+    made = (world.make(seed + i * episodes + e) for i in ids for e in range(episodes))
+    envs, first = zip(*made, strict=True)
     obs = np.stack(first).reshape(seeds, episodes, -1)
     path, rews, alive = [obs], [], []
     done = np.zeros(seeds * episodes, bool)
@@ -143,11 +147,12 @@ def evaluate_host(world, actors, episodes: int, seed: int):
 
 
 class _Envs:
-    """One gymnasium env per seed, with its current observation; every env restarts when its episode ends."""
+    """One gymnasium env per seed (``ids``: the seeds' indices in the whole run, each env made with
+    ``seed + index``), with its current observation; every env restarts when its episode ends."""
 
-    def __init__(self, world, seeds: int, seed: int):
+    def __init__(self, world, ids: tuple[int, ...], seed: int):
         self.world = world
-        self.envs, first = zip(*(world.make(seed + i) for i in range(seeds)), strict=True)
+        self.envs, first = zip(*(world.make(seed + i) for i in ids), strict=True)
         self.obs = np.stack(first)
 
     def step(self, act: np.ndarray):
@@ -169,9 +174,21 @@ class _Envs:
 
 
 def run_host(
-    world, learner: Learner, cfg, teacher, meta: dict, seeds: int, *, out=None, progress=True, fresh=False, oracle=None
+    world,
+    learner: Learner,
+    cfg,
+    teacher,
+    meta: dict,
+    seeds: int,
+    *,
+    out=None,
+    progress=True,
+    fresh=False,
+    oracle=None,
+    ids: tuple[int, ...] | None = None,
 ) -> dict:
-    """:func:`~mindgap.algorithms.engine.run` on a gym world (same arguments, same result dict).
+    """:func:`~mindgap.algorithms.engine.run` on a gym world (same arguments, same result dict; ``ids``:
+    the seeds of the ``seeds`` that train, :func:`~mindgap.algorithms.engine.which_seeds`).
 
     The schedule is the engine's (:func:`~mindgap.algorithms.engine.drive`); only the steps and
     the evaluations differ. A run resumed from ``out`` continues every seed's learner and buffer
@@ -182,14 +199,15 @@ def run_host(
     env, w = world.env, WorldArgs(world.params, world.obs_units(), oracle)
     sac_cfg = learner.agent_sac(cfg)
     d = env.observation_space.dim
-    keys = jax.random.split(rng.key(cfg.seed), seeds)
+    ids = which_seeds(seeds) if ids is None else ids
+    keys = seed_keys(cfg.seed, seeds, ids)
     carry = init_carry(keys, learner, env, None, cfg, start=lambda k: jnp.zeros(d))  # loop.env: the observation
     live = {}  # the envs and the next action, made at the first chunk (after any checkpoint is read)
 
     def chunk(c: Carry, phase: str, step: int) -> Carry:
         if "envs" not in live:
-            live["envs"] = _Envs(world, seeds, cfg.seed * 1000 + 7919 * step)  # fresh episodes, also on resuming
-            zero = jnp.zeros(seeds, jnp.int32)
+            live["envs"] = _Envs(world, ids, cfg.seed * 1000 + 7919 * step)  # fresh episodes, also on resuming
+            zero = jnp.zeros(len(ids), jnp.int32)
             loop = c.loop._replace(env=jnp.asarray(live["envs"].obs), t=zero)
             loop, live["act"] = first_action(loop, sac_cfg, phase)
             c = c._replace(loop=loop)
@@ -205,11 +223,23 @@ def run_host(
         return c._replace(loop=loop)
 
     def evaluate_at(c: Carry, episodes: int, step: int):
-        return evaluate_host(world, c.loop.sac.params.actor, episodes, 10_000 + cfg.seed + step)
+        return evaluate_host(world, c.loop.sac.params.actor, episodes, 10_000 + cfg.seed + step, ids)
 
     try:
         return drive(
-            world, learner, cfg, teacher, meta, carry, w, chunk, evaluate_at, out=out, progress=progress, fresh=fresh
+            world,
+            learner,
+            cfg,
+            teacher,
+            meta,
+            carry,
+            w,
+            chunk,
+            evaluate_at,
+            out=out,
+            progress=progress,
+            fresh=fresh,
+            ids=ids,
         )
     finally:
         if "envs" in live:

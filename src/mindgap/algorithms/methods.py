@@ -110,11 +110,13 @@ def train(
     out: Path | None = None,
     progress: bool = True,
     fresh: bool = False,
+    seed_ids: tuple[int, ...] | None = None,
     **who,
 ) -> dict:
     """Run ``seeds`` seeds of ``method`` on ``world`` with ``cfg``; checkpoint to ``out``.
 
-    ``who`` names the person (see :attr:`Method.prepare`). Returns the dict of
+    ``who`` names the person (see :attr:`Method.prepare`); ``seed_ids`` trains only those of the
+    ``seeds`` seeds, each as it trains in the whole run (a seed slice). Returns the dict of
     :func:`~mindgap.algorithms.engine.run`.
     """
     m = get(method)
@@ -124,7 +126,8 @@ def train(
         raise ValueError(f"{m.name} runs configs of method {m.tag!r}, got one of {cfg.method!r}")
     cfg.check()
     teacher, meta, oracle = m.prepare(world, cfg, seeds, **who)
-    return run(world, m.learner(cfg), cfg, teacher, meta, seeds, out=out, progress=progress, fresh=fresh, oracle=oracle)
+    kw = dict(out=out, progress=progress, fresh=fresh, oracle=oracle, seed_ids=seed_ids)
+    return run(world, m.learner(cfg), cfg, teacher, meta, seeds, **kw)
 
 
 def learned_reward(method: str | Method, carry):

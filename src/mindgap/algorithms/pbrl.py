@@ -197,8 +197,10 @@ def train(
     out: Path | None = None,
     progress: bool = True,
     fresh: bool = False,
+    seed_ids: tuple[int, ...] | None = None,
 ) -> dict:
-    """Run ``seeds`` seeds of ``cfg.method`` on ``world``; checkpoint to ``out``.
+    """Run ``seeds`` seeds of ``cfg.method`` on ``world`` (only the seeds ``seed_ids`` of them, given
+    those: a seed slice, :func:`mindgap.algorithms.methods.train`); checkpoint to ``out``.
 
     Args:
         world: a :class:`~mindgap.envs.interface.World` (a terrain world, a user's own, or a
@@ -216,4 +218,5 @@ def train(
 
     cfg.check()
     m = methods.for_config(cfg)
-    return methods.train(m, world, cfg, seeds, out=out, progress=progress, fresh=fresh, teacher=teacher, belief=belief)
+    kw = dict(out=out, progress=progress, fresh=fresh, seed_ids=seed_ids)
+    return methods.train(m, world, cfg, seeds, teacher=teacher, belief=belief, **kw)

@@ -60,6 +60,14 @@ def add_parser(sub) -> None:
     r.add_argument(
         "--job", metavar="KEY", help="run only this job (a record's `command` names it) and print its record"
     )
+    r.add_argument(
+        "--seed",
+        type=int,
+        action="append",
+        metavar="I",
+        help="nav, priors, sampling, gym: with --job, train only seed I (0-based; repeatable) of a learner job, "
+        "resumable; the job's record is assembled once every seed has run",
+    )
 
     from . import sweep
 
@@ -76,6 +84,8 @@ def run(args) -> int:
         raise ValueError("--assemble only reads a run folder; it does not combine with --fresh or --shard")
     if args.job and (args.assemble or args.shard):
         raise ValueError("--job runs one job; it does not combine with --assemble or --shard")
+    if args.seed is not None:
+        check_seed(args)
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
@@ -127,6 +137,19 @@ def finish(summary: dict | None, out: Path, args, outputs: str, unit: str = "job
         print(f"shard {args.shard} done; rerun without --shard to assemble {out}/")
         return 0
     return print_run(summary, out, args.job, outputs, unit)
+
+
+def check_seed(args) -> None:
+    """Refuse ``--seed`` where it cannot slice: without ``--job``, with ``--backend``, or in an
+    experiment whose jobs run whole (the range and the job's kind are checked with the job)."""
+    from ..experiments._seed_slices import EXPERIMENTS as SLICED
+
+    if args.name not in SLICED:
+        raise ValueError(f"--seed: {args.name} runs its jobs whole; seeds are sliced in {', '.join(SLICED)}")
+    if not args.job:
+        raise ValueError("--seed trains seeds of one job: name it with --job KEY")
+    if getattr(args, "backend", None):
+        raise ValueError("--seed trains in this process; it does not combine with --backend")
 
 
 def shard(spec: str | None) -> tuple[int, int] | None:

@@ -3,6 +3,7 @@ and ``gym`` (the control domains, whose ``--worlds`` are domain names: lunar, ho
 cheetah-mjx; :mod:`~.prefbias_gym`).
 
 mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--method NAME …] [--out DIR] [--fresh] [--quiet] [--assemble]
+mindgap reproduce gym --out DIR --job KEY --seed I     # seed I of one learner job alone (nav, priors, sampling, gym)
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, tiny networks: a dry run and the tests'
 preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 50 000
@@ -13,7 +14,9 @@ it on any world with a belief and an exact density, a user's ``path.py:factory``
 (repeatable, nav and gym) adds a registered preference learner beside PEBBLE, on PEBBLE's schedule and
 budget (``MINDGAP_METHODS=file.py`` registers one from a file). The run folder defaults to
 ``runs/NAME`` (``runs/NAME-fast``); rerunning resumes: finished jobs are read back, an
-interrupted one continues from its checkpoint.
+interrupted one continues from its checkpoint. ``--job KEY --seed I`` trains seed I of a learner
+job alone (:mod:`~mindgap.experiments._seed_slices`: a full job outlasts a session), and the job's
+record is assembled once every seed has run.
 """
 
 from __future__ import annotations
@@ -59,7 +62,8 @@ def reproduce(args) -> int:
         cfg = replace(cfg, methods=extra)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     only = getattr(args, "job", None)
-    summary = module.run(
-        cfg, out, fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False), only=only
-    )
+    kw = dict(fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False), only=only)
+    if getattr(args, "seed", None) is not None:
+        kw["seed_ids"] = tuple(args.seed)
+    summary = module.run(cfg, out, **kw)
     return print_run(summary, out, only)

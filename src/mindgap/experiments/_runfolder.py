@@ -1,4 +1,8 @@
-"""Run folders: atomic writes, per-job checkpoints and resume after a kill."""
+"""Run folders: atomic writes, per-job checkpoints and resume after a kill.
+
+A folder keeps each finished job's record in ``jobs/`` and each seed slice's partial record in
+``seeds/`` (:mod:`~._seed_slices`); checkpoints live under ``train/``.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +12,8 @@ import json
 import time
 from dataclasses import MISSING, asdict, fields, is_dataclass
 from pathlib import Path
+
+import numpy as np
 
 from .._io import atomic_write
 from .claim_sources import PROJECT, sourced
@@ -37,6 +43,14 @@ def to_jsonable(obj):
     if isinstance(obj, (list, tuple)):
         return [to_jsonable(v) for v in obj]
     return obj
+
+
+def nan_to_none(a, digits: int | None = 5) -> list:
+    """A map [H, W] as JSON rows: floats rounded to ``digits`` (None: kept whole), None where it is NaN."""
+    return [
+        [None if not np.isfinite(x) else float(x) if digits is None else round(float(x), digits) for x in row]
+        for row in np.asarray(a)
+    ]
 
 
 def same_config(stored, config, ignore=()) -> bool:
@@ -96,7 +110,7 @@ class RunFolder:
         cfg = json.dumps(to_jsonable(config), indent=2, sort_keys=True)
         cfg_path = self.root / "config.json"
         if fresh and self.root.exists():
-            for p in self.jobs.glob("*.json"):
+            for p in [*self.jobs.glob("*.json"), *(self.root / SEEDS).glob("*/*.json")]:
                 p.unlink()
         elif cfg_path.exists() and cfg_path.read_text() != cfg:
             if not same_config(json.loads(cfg_path.read_text()), config):
@@ -136,6 +150,9 @@ class RunFolder:
             "version": __version__,
             "written": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         }
+        apart = {k: seeds for k in missing if (seeds := partial_seeds(self.root, k))}
+        if apart:  # the missing jobs' seeds already trained apart (--seed)
+            record["seeds_done"] = apart
         atomic_write(self.root / "progress.json", json.dumps(record, indent=2))
         return record
 
@@ -147,7 +164,9 @@ def print_run(
     table, each claim as held or not (the project's own checks marked), the ``unit`` still missing and
     where the outputs are. Returns 0."""
     if only:
-        print(job_summary(summary["job"], out, only))
+        print(job_summary(summary["job"], out, only, summary.get("record")))
+        for line in summary.get("notes", ()):
+            print(line)
         return 0
     print(summary["table_md"])
     for c in summary.get("claims", []):
@@ -164,9 +183,25 @@ def record_path(root: Path, key: str) -> Path:
     return Path(root) / "jobs" / (key.replace("/", "__") + ".json")
 
 
-def job_summary(record: dict, root: Path, key: str) -> str:
+SEEDS = "seeds"
+"""The folder of a run folder that keeps seed slices' partial records."""
+
+
+def partial_path(root: Path, key: str, seed: int) -> Path:
+    """Where the run folder ``root`` keeps seed ``seed``'s partial record of job ``key``
+    (``seeds/KEY/seed-I.json``, ``/`` as ``__``)."""
+    return Path(root) / SEEDS / key.replace("/", "__") / f"seed-{seed}.json"
+
+
+def partial_seeds(root: Path, key: str) -> list[int]:
+    """The seeds of job ``key`` whose partial records the run folder ``root`` holds, in order."""
+    folder = partial_path(root, key, 0).parent
+    return sorted(int(p.stem.removeprefix("seed-")) for p in folder.glob("seed-*.json"))
+
+
+def job_summary(record: dict, root: Path, key: str, path: Path | None = None) -> str:
     """What ``mindgap reproduce … --job KEY`` prints: the record's numbers (a Table 1 fit's
-    metrics included) and where the record is."""
+    metrics included) and where the record is (``path``, default the job's record)."""
     flat = {**record, **record.get("row", {})}
     shown = {k: v for k, v in flat.items() if isinstance(v, (int, float, str)) and k != "command"}
-    return json.dumps(shown, indent=1) + f"\nrecord in {record_path(root, key)}"
+    return json.dumps(shown, indent=1) + f"\nrecord in {path or record_path(root, key)}"

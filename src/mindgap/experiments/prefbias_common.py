@@ -8,7 +8,8 @@
 * **Jobs** in a :class:`~._runfolder.RunFolder`: ``WORLD/reference`` (a uniformly random
   policy's return and the planning check's routes) and one job per learner, all seeds
   vmapped inside one call of the existing ``train``. A finished job is one JSON record;
-  an unfinished one resumes from its engine checkpoint under ``train/``.
+  an unfinished one resumes from its engine checkpoint under ``train/``. A learner job's seeds
+  may also train one at a time (``--seed``, :mod:`~._seed_slices`: a full job outlasts a session).
 * **Metrics**: the normalised score, the route each seed takes, the errors of the learned
   belief and reward (:mod:`~.world_measures`: on any world, what its map allows);
   **reports**: result rows, curve rows, markdown tables, bar charts.
@@ -31,8 +32,10 @@ from ..algorithms.engine import Schedule
 from ..algorithms.prefbias import PrefBiasLoopConfig, prefbias_config
 from ..models.reward_ensemble import RewardConfig
 from ..planning.terrain_maps import noise_maps, stay_maps, table_noise_map, table_stay_map
+from . import _seed_slices as slices
 from . import registry
 from ._runfolder import RunFolder
+from ._runfolder import nan_to_none as nan_to_none  # a record's maps (eps_common reads it here)
 from .claim_sources import claim as claim  # the experiments' claims, with their sources' ids
 from .world_measures import (
     experiment_world,
@@ -188,7 +191,9 @@ def method_job(world: str, name: str, learn: Learners, queries: int) -> Job:
         raise ValueError(f"{name} learns no reward from preferences: an experiment's learners beside PEBBLE must")
     schedule = {f.name: getattr(learn.pebble, f.name) for f in dataclasses.fields(Schedule) if f.name != "method"}
     cfg = dataclasses.replace(method.preset("full"), **{**schedule, "queries": queries})
-    return Job(f"{world}/{name}-q{queries}", world, name, f"{method.label} ({queries} queries)", cfg, {"queries": queries})
+    return Job(
+        f"{world}/{name}-q{queries}", world, name, f"{method.label} ({queries} queries)", cfg, {"queries": queries}
+    )
 
 
 def teacher_of(job: Job) -> str:
@@ -199,17 +204,27 @@ def teacher_of(job: Job) -> str:
     return "true" if job.method == "sac" else PERSONS[person]
 
 
-def compute_job(folder: RunFolder, job: Job, seeds: int, *, fresh: bool, progress: bool) -> dict:
-    """The record of one job of these experiments: the reference or a learner's training."""
+def compute_job(
+    folder: RunFolder, job: Job, seeds: int, *, fresh: bool, progress: bool, seed_ids: tuple[int, ...] | None = None
+) -> dict:
+    """The record of one job of these experiments: the reference or a learner's training (of the
+    seeds ``seed_ids`` alone: a seed slice's partial record, :mod:`~._seed_slices`)."""
     world = experiment_world(job.world, "this experiment")
     if job.method == "reference":
         return _reference(world, job.cfg)
-    return _learn(world, job, seeds, job_dir(folder, job), fresh=fresh, progress=progress)
+    out = job_dir(folder, job, seed_ids)
+    return _learn(world, job, seeds, out, fresh=fresh, progress=progress, seed_ids=seed_ids)
 
 
-def job_dir(folder: RunFolder, job: Job) -> Path:
-    """Where a job keeps its engine checkpoint (and anything else it stores beside its record)."""
-    return train_dir(folder.root, job)
+def trains_seeds(job: Job) -> bool:
+    """Whether ``job`` trains seeds of a registered learner (the jobs ``--seed`` may slice)."""
+    return job.method in methods.METHODS
+
+
+def job_dir(folder: RunFolder, job: Job, seed_ids: tuple[int, ...] | None = None) -> Path:
+    """Where a job keeps its engine checkpoint (and anything else it stores beside its record); with
+    ``seed_ids``, where those seeds trained apart keep theirs."""
+    return slices.slice_dir(train_dir(folder.root, job), seed_ids)
 
 
 def train_dir(root: Path, job: Job) -> Path:
@@ -295,16 +310,19 @@ def learned_noise(res: dict, world, cfg: PrefBiasLoopConfig) -> tuple[np.ndarray
     return np.asarray(belief), np.asarray(agent)
 
 
-def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: bool) -> dict:
-    """Train every seed of one learner (vmapped, checkpointed in ``out``) and measure it."""
+def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: bool, seed_ids=None) -> dict:
+    """Train every seed of one learner, or the seeds ``seed_ids`` of it (vmapped, checkpointed in
+    ``out``), and measure them; a slice keeps each seed's maps whole in ``seed_maps``."""
     kw = dict(seeds=seeds, out=out, progress=progress, fresh=fresh)
+    if seed_ids is not None:
+        kw["seed_ids"] = tuple(seed_ids)
     res = methods.train(job.method, world, job.cfg, teacher=teacher_of(job), **kw)
     learned = methods.learned_reward(job.method, res["carry"])
     final = np.asarray(res["final_returns"], np.float64)
     if not np.all(np.isfinite(final)):
         raise FloatingPointError(f"{job.key}: non-finite returns; the run diverged")
     rec = {
-        "seeds": seeds,
+        "seeds": len(final),
         "curve": [[int(s), int(t), float(r), int(q)] for s, t, r, q in res["curve"]],
         "final": [float(x) for x in final.mean(1)],
         "final_episodes": int(final.shape[1]),
@@ -319,17 +337,17 @@ def _learn(world, job: Job, seeds: int, out: Path, *, fresh: bool, progress: boo
         rec["dynamics_error"] = noise_rms_error(agent, person).tolist()
         rec["belief_map"] = nan_to_none(belief.mean(0))  # NaN on walls in every seed
         rec["dynamics_map"] = nan_to_none(agent.mean(0))
+        maps = {"belief_map": belief, "dynamics_map": agent}
         if job.cfg.prefbias.stay_head:  # the probability of not moving: what the redesigned worlds' person misjudges
             person_stay = np.asarray(table_stay_map(world.belief()))
             belief, agent = learned_stay(res, world)
             rec["belief_stay_error"] = noise_rms_error(belief, person_stay).tolist()
             rec["dynamics_stay_error"] = noise_rms_error(agent, person_stay).tolist()
             rec["belief_stay_map"] = nan_to_none(belief.mean(0))
+            maps["belief_stay_map"] = belief
+        if seed_ids is not None:  # the means over seeds are made again when the job is assembled
+            rec["seed_maps"] = {k: [nan_to_none(m, None) for m in v] for k, v in maps.items()}
     return rec
-
-
-def nan_to_none(a) -> list:
-    return [[None if not np.isfinite(x) else round(float(x), 5) for x in row] for row in np.asarray(a)]
 
 
 def map_array(rows) -> np.ndarray:
@@ -390,6 +408,8 @@ def run_experiment(
     name: str = "this experiment",
     only: str | None = None,
     check=experiment_world,
+    seed_ids: tuple[int, ...] | None = None,
+    sliceable=None,
 ):
     """Run (or resume) ``jobs`` in the run folder ``out``, then ``write_outputs(cfg, out, records)``.
 
@@ -399,17 +419,32 @@ def run_experiment(
     ``only`` runs one job (and those whose records it reads) and writes no outputs.
     ``check(world, name)`` refuses a job's world with one line (default :func:`experiment_world`;
     the ``gym`` experiment checks its domain names).
+    ``sliceable(job)`` says which jobs may train seed by seed (None: none; ``compute`` then takes
+    ``seed_ids=``): with ``only`` and ``seed_ids``, those seeds of the job train apart
+    (:func:`~._seed_slices.run_seeds`), and a job some of whose seeds trained apart finishes so.
     Returns the summary, with ``missing_jobs``: how many jobs have no record yet; with
-    ``only``, ``{"job": its record}``.
+    ``only``, ``{"job": its record}`` (a seed's partial record with ``seed_ids``, its path and notes).
     """
     out = Path(out)
     everything = [job.key for job in jobs]
+    if seed_ids is not None and only is None:
+        raise ValueError("--seed trains seeds of one job: name it with --job KEY")
     if only is not None:
         jobs = select_job(jobs, only, name)
+    if seed_ids is not None:
+        seed_ids = slices.check(jobs[-1], seed_ids, cfg.seeds, sliceable, name)
     for spec in dict.fromkeys(job.world for job in jobs):
         check(spec, name)
     folder = RunFolder(out, cfg, fresh=fresh)
     rerun = registry.command(name, cfg, out) if name in registry.NAMES else ""
+    kw = dict(fresh=fresh, progress=progress, rerun=rerun)
+    if seed_ids is not None:
+        summary = slices.run_seeds(folder, jobs[-1], cfg.seeds, seed_ids, compute, **kw)
+        folder.write_progress(name, everything, rerun)
+        return summary
+    if sliceable is not None:  # jobs whose seeds began apart finish apart
+        for job in jobs:
+            slices.complete(folder, job, cfg.seeds, compute, assemble_only=assemble_only, **kw)
     records = run_jobs(
         folder,
         jobs,

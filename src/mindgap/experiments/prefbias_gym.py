@@ -315,8 +315,9 @@ def jobs(cfg: GymConfig) -> list[pc.Job]:
 def run(cfg: GymConfig, out: Path, **kw) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG/GIF; return the summary.
 
-    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
-    :func:`~.prefbias_common.run_experiment`.
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``, ``seed_ids``) as
+    :func:`~.prefbias_common.run_experiment`; every learner job and SAC's level runs may train seed
+    by seed (``--seed``: a full job outlasts a session, :mod:`~._seed_slices`).
     """
     return pc.run_experiment(
         cfg,
@@ -327,32 +328,36 @@ def run(cfg: GymConfig, out: Path, **kw) -> dict:
         compute=lambda folder, job, seeds, **k: compute_job(folder, job, seeds, cfg=cfg, **k),
         references=("reference", "sac-level"),
         check=check_domain,
+        sliceable=lambda job: pc.trains_seeds(job) or job.method == "sac-level",
         **kw,
     )
 
 
-def compute_job(folder, job: pc.Job, seeds: int, *, cfg: GymConfig, fresh: bool, progress: bool) -> dict:
-    """The record of one job: the reference, a learner's training, or SAC's level run."""
+def compute_job(folder, job: pc.Job, seeds: int, *, cfg: GymConfig, fresh: bool, progress: bool, seed_ids=None) -> dict:
+    """The record of one job: the reference, a learner's training, or SAC's level run (of the seeds
+    ``seed_ids`` alone: a seed slice's partial record, whose animation only seed 0's slice draws)."""
     world, belief = load_world(job.world, cfg, progress=progress)
     if job.method == "reference":
         return reference_record(world, job.world, cfg, belief)
+    kw = _kw(folder, job, fresh, progress, seed_ids)
     if job.method == "sac-level":
         level_world = gym_world_from_spec(_spec(LEVELS[job.world].env, cfg.horizon))
-        res = pbrl.train(level_world, job.cfg, seeds=seeds, teacher="true", **_kw(folder, job, fresh, progress))
-        return {**_record(res, job, seeds), "env": level_world.name, **_draw(folder, job, level_world, res)}
-    res = _train(world, job, seeds, **_kw(folder, job, fresh, progress))
-    rec = _record(res, job, seeds)
+        res = pbrl.train(level_world, job.cfg, seeds=seeds, teacher="true", **kw)
+        return {**_record(res, job), "env": level_world.name, **_draw(folder, job, level_world, res, seed_ids)}
+    res = _train(world, job, seeds, **kw)
+    rec = _record(res, job)
     learned = methods.learned_reward(job.method, res["carry"])
     if learned is not None:
         rec["reward_error"] = reward_error(world, cfg, *learned).tolist()
     if belief is not None:
         rec["belief_model"] = {k: v for k, v in belief.items() if k != "config"}
     draw = world if isinstance(world, GymWorld) else gym_world_from_spec(_spec(domain(job.world).draw, cfg.horizon))
-    return {**rec, **_draw(folder, job, draw, res)}
+    return {**rec, **_draw(folder, job, draw, res, seed_ids)}
 
 
-def _kw(folder, job, fresh, progress) -> dict:
-    return dict(out=pc.job_dir(folder, job), fresh=fresh, progress=progress)
+def _kw(folder, job, fresh, progress, seed_ids=None) -> dict:
+    kw = dict(out=pc.job_dir(folder, job, seed_ids), fresh=fresh, progress=progress)
+    return kw if seed_ids is None else {**kw, "seed_ids": tuple(seed_ids)}
 
 
 def _train(world, job: pc.Job, seeds: int, **kw) -> dict:
@@ -363,8 +368,9 @@ PATH_EPISODES = 2
 """Greedy episodes per seed whose first two observations a record keeps (for the trajectory figure)."""
 
 
-def _record(res: dict, job: pc.Job, seeds: int) -> dict:
+def _record(res: dict, job: pc.Job) -> dict:
     final = np.asarray(res["final_returns"], np.float64)
+    seeds = len(final)
     if not np.all(np.isfinite(final)):
         raise FloatingPointError(f"{job.key}: non-finite returns; the run diverged")
     return {
@@ -381,11 +387,15 @@ def _record(res: dict, job: pc.Job, seeds: int) -> dict:
     }
 
 
-def _draw(folder, job: pc.Job, world, res: dict) -> dict:
-    """``rollouts/DOMAIN__NAME.gif``: one greedy episode of seed 0's final policy; ``{"rollout": path or None}``."""
+def _draw(folder, job: pc.Job, world, res: dict, seed_ids=None) -> dict:
+    """``rollouts/DOMAIN__NAME.gif``: one greedy episode of seed 0's final policy; ``{"rollout": path or None}``
+    (``{}`` for seeds trained apart without seed 0)."""
+    ids = list(range(len(res["final_returns"])) if seed_ids is None else seed_ids)
+    if 0 not in ids:
+        return {}
     path = folder.root / "rollouts" / (job.key.replace("/", "__") + ".gif")
     try:
-        draw_rollout(path, world, jax.tree.map(lambda x: x[0], res["carry"].loop.sac.params.actor))
+        draw_rollout(path, world, jax.tree.map(lambda x: x[ids.index(0)], res["carry"].loop.sac.params.actor))
     except Exception as e:  # the results stand without a picture
         print(f"no {path.name}: {world.name} could not draw itself ({type(e).__name__}: {e})", file=sys.stderr)
         return {"rollout": None}
@@ -409,7 +419,11 @@ _ORDER = {"prefbias": 0, "pebble": 1, "sac": 2, "sac-level": 3}
 
 
 def _order(rec: dict) -> tuple:
-    return (_ORDER.get(rec["method"], 1.5), rec["tags"].get("queries", 0), rec["method"])  # a registered learner after PEBBLE
+    return (
+        _ORDER.get(rec["method"], 1.5),
+        rec["tags"].get("queries", 0),
+        rec["method"],
+    )  # a registered learner after PEBBLE
 
 
 _ROUTE_COLUMNS = ("better_route", "goal_rate", "ice_share", "sand_share", "pit_mean", "plan_return")

@@ -104,10 +104,10 @@ def jobs(cfg: NavConfig) -> list[pc.Job]:
 def run(cfg: NavConfig, out: Path, **kw) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
 
-    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
-    :func:`~.prefbias_common.run_experiment`.
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``, ``seed_ids``) as
+    :func:`~.prefbias_common.run_experiment`; every learner job may train seed by seed.
     """
-    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="nav", **kw)
+    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="nav", sliceable=pc.trains_seeds, **kw)
 
 
 def _order(rec: dict) -> tuple:

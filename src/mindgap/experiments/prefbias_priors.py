@@ -75,10 +75,10 @@ def jobs(cfg: PriorsConfig) -> list[pc.Job]:
 def run(cfg: PriorsConfig, out: Path, **kw) -> dict:
     """Run (or resume) the experiment in ``out``; write CSV/JSON/PNG; return the summary.
 
-    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``) as
-    :func:`~.prefbias_common.run_experiment`.
+    Keywords (``fresh``, ``progress``, ``assemble_only``, ``only``, ``seed_ids``) as
+    :func:`~.prefbias_common.run_experiment`; every learner job may train seed by seed.
     """
-    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="priors", **kw)
+    return pc.run_experiment(cfg, out, jobs(cfg), write_outputs, name="priors", sliceable=pc.trains_seeds, **kw)
 
 
 def write_outputs(cfg: PriorsConfig, out: Path, records: dict) -> dict:
