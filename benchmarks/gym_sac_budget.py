@@ -9,6 +9,7 @@ checkpoints into ``--out`` and resumes; ``--out/NAME.json`` keeps the result.
 
     python benchmarks/gym_sac_budget.py --domain hopper --hidden 256 --train-every 1 --seeds 3 --steps 100000
     python benchmarks/gym_sac_budget.py --domain hopper --hidden 128 --train-every 2 --seeds 1 --steps 100000
+    python benchmarks/gym_sac_budget.py --domain cheetah --hidden 128 --seeds 3 --seed 1   # 3 other seeds
 """
 
 from __future__ import annotations
@@ -34,17 +35,20 @@ def main() -> None:
     p.add_argument("--train-every", type=int, default=1, help="environment steps per update (preset: 1)")
     p.add_argument("--seeds", type=int, default=1)
     p.add_argument("--steps", type=int, default=100_000)
+    p.add_argument("--seed", type=int, help="the run's base seed, for other seeds than the preset's (default: its own)")
     p.add_argument("--out", type=Path, default=Path("runs/gym-sac-budget"))
     args = p.parse_args()
     base = gym.gym_learners("full").sac
     cfg = replace(
         base,
         total_steps=args.steps,
+        seed=base.seed if args.seed is None else args.seed,
         sac=replace(base.sac, hidden=(args.hidden, args.hidden), train_every=args.train_every),
     )
     cfg.check()
     world = gym_world_from_spec(gym._spec(gym.domain(args.domain).env, None))
     name = f"{args.domain}-h{args.hidden}-every{args.train_every}-s{args.seeds}-{args.steps}"
+    name += "" if args.seed is None else f"-seed{args.seed}"
     t0 = time.perf_counter()
     res = methods.train("sac", world, cfg, args.seeds, teacher="true", out=args.out / name, progress=True)
     seconds = time.perf_counter() - t0
@@ -54,6 +58,7 @@ def main() -> None:
         "hidden": args.hidden,
         "train_every": args.train_every,
         "seeds": args.seeds,
+        "seed": cfg.seed,
         "steps": args.steps,
         "final_per_seed": [round(float(x), 1) for x in final],
         "curve": [[int(s), int(t), round(float(r), 1)] for s, t, r, _ in res["curve"]],
