@@ -36,7 +36,7 @@ weights, so its column slightly understates the rate it computes at); the refere
 a plain float32 matrix multiplication ``[batch, h] · [h, h]`` repeated in a chain, with
 XLA (what the JAX updates use) and with NumPy's BLAS, best of the two.
 
-    python benchmarks/sac_throughput.py [--sizes 256 64] [--chunk 250] [--chunks 4] [--seeds 8] [--skip sb3 sbx]
+    python benchmarks/sac_throughput.py [--sizes 256 128 64] [--chunk 250] [--chunks 4] [--seeds 8] [--skip sb3 sbx]
 """
 
 from __future__ import annotations
@@ -229,7 +229,7 @@ def _available(module: str) -> str | None:
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--world", default="d1")
-    p.add_argument("--sizes", type=int, nargs="+", default=[256, 64], help="hidden width h of h×h networks")
+    p.add_argument("--sizes", type=int, nargs="+", default=[256, 128, 64], help="hidden width h of h×h networks")
     p.add_argument("--chunk", type=int, default=250, help="training steps per timed chunk (and of the warm-up)")
     p.add_argument("--chunks", type=int, default=4, help="timed chunks per run; the best one counts")
     p.add_argument("--learning-starts", type=int, default=1000)
