@@ -10,6 +10,7 @@ all three domains (several minutes on a 2-core CPU with a cold compilation cache
 
 import csv
 import json
+from dataclasses import replace
 from types import SimpleNamespace
 
 import jax.numpy as jnp
@@ -96,7 +97,7 @@ def stand_ins(monkeypatch):
 
 def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_ins, tmp_path, capsys):
     out = tmp_path / "gym"
-    argv = ["reproduce", "gym", "--fast", "--quiet", "--worlds", "lunar", "--out", str(out)]
+    argv = ["reproduce", "gym", "--fast", "--quiet", "--worlds", "lunar", "--levels", "--out", str(out)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     learners = [c for c in stand_ins if c[0] != "fit"]
@@ -148,7 +149,7 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
         assert (out / name).stat().st_size > 0, name
     record = json.loads((out / "jobs" / "lunar__prefbias-q30.json").read_text())
     assert record["belief_model"]["belief_env"] == vacuum and len(record["paths"][0]) == pg.PATH_EPISODES
-    assert record["command"] == f"mindgap reproduce gym --fast --worlds lunar --out {out} --job lunar/prefbias-q30"
+    assert record["command"] == f"mindgap reproduce gym --fast --worlds lunar --levels --out {out} --job lunar/prefbias-q30"
     # a rerun computes nothing and prints the same
     stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
     n = len(stand_ins)
@@ -236,17 +237,20 @@ def test_bad_input_is_refused_with_one_line(tmp_path, capsys):
         err = capsys.readouterr().err
         assert says in err and err.count("\n") == 1 and "Traceback" not in err, err
         assert not out.exists()
+    assert main(["reproduce", "nav", "--fast", "--levels", "--out", str(tmp_path / "nav")]) == 2
+    assert "--levels adds SAC's level runs to gym" in capsys.readouterr().err and not (tmp_path / "nav").exists()
 
 
 def test_the_presets_and_the_jobs():
     full = pg.preset("full")
+    learners = ("reference", "sac", "pebble-q800", "prefbias-q200", "prefbias-q400", "prefbias-q800")
     keys = [j.key for j in pg.jobs(full)]
     for w in ("lunar", "hopper", "cheetah"):
-        assert [k for k in keys if k.startswith(w + "/")] == [
-            f"{w}/{n}"
-            for n in ("reference", "sac", "pebble-q800", "prefbias-q200", "prefbias-q400", "prefbias-q800", "sac-level")
-        ]
-    by = {j.key: j for j in pg.jobs(full)}
+        assert [k for k in keys if k.startswith(w + "/")] == [f"{w}/{n}" for n in learners]  # levels: opt-in
+    keys = [j.key for j in pg.jobs(replace(full, levels=True))]
+    for w in ("lunar", "hopper", "cheetah"):
+        assert [k for k in keys if k.startswith(w + "/")] == [f"{w}/{n}" for n in (*learners, "sac-level")]
+    by = {j.key: j for j in pg.jobs(replace(full, levels=True))}
     assert full.seeds == 5 and by["hopper/prefbias-q400"].cfg.total_steps == pg.FULL_STEPS["hopper"]
     assert by["cheetah/sac-level"].cfg.total_steps == pg.LEVELS["cheetah"].steps == 1_000_000
     assert by["lunar/pebble-q800"].cfg.absorbing_state == "single" and by["lunar/prefbias-q800"].cfg.prefbias.absorbing
@@ -258,6 +262,9 @@ def test_the_presets_and_the_jobs():
     assert pb.sac == sac.sac and pb.total_steps == sac.total_steps
     assert registry.preset_of("gym", full) == "full" and registry.preset_of("gym", pg.preset("fast")) == "fast"
     assert registry.command("gym", pg.preset("fast"), "runs/x") == "mindgap reproduce gym --fast --out runs/x"
+    with_levels = registry.configure("gym", "full", levels=True)
+    assert registry.command("gym", with_levels, "r") == "mindgap reproduce gym --levels --out r"
+    assert registry.preset_of("gym", with_levels) == "full"  # an option, as --seeds is
 
 
 @pytest.mark.slow
@@ -265,7 +272,7 @@ def test_gym_fast_for_real(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("MINDGAP_CACHE", str(tmp_path / "cache"))
     monkeypatch.setenv("MUJOCO_GL", "egl")
     out = tmp_path / "gym"
-    assert main(["reproduce", "gym", "--fast", "--quiet", "--out", str(out)]) == 0
+    assert main(["reproduce", "gym", "--fast", "--quiet", "--levels", "--out", str(out)]) == 0
     results = rows(out / "results.csv")
     assert sorted((r["world"], r["method"]) for r in results) == sorted(
         (w, m) for w in ("lunar", "hopper", "cheetah") for m in ("prefbias", "pebble", "sac", "sac-level")

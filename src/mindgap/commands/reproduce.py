@@ -36,6 +36,11 @@ def add_parser(sub) -> None:
         help="nav, gym: also run this registered preference learner beside PEBBLE (repeatable; "
         "MINDGAP_METHODS=file.py registers one)",
     )
+    r.add_argument(
+        "--levels",
+        action="store_true",
+        help="gym: also train SAC on each domain's belief env at the published SAC levels' budgets (days on a CPU)",
+    )
     r.add_argument("--participants", type=int, help="coffee: valid participants per robot type (overrides the preset)")
     r.add_argument("--sleet", type=float, help="driving: the road's sleet level, 0 (dry) to 1 (full sleet)")
     r.add_argument("--traffic", type=int, help="driving: other cars on the road (0 to 4 on its three lanes)")
@@ -91,6 +96,8 @@ def run(args) -> int:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")
     if args.method and "methods" not in registry.options(args.name):
         raise ValueError("--method adds learners to nav and gym; the other experiments have their own fixed sets")
+    if getattr(args, "levels", False) and "levels" not in registry.options(args.name):
+        raise ValueError("--levels adds SAC's level runs to gym")
     for flag in ("sleet", "traffic", "sanity", "importance", "answers_by"):
         if getattr(args, flag) is not None and args.name != "driving":
             raise ValueError(f"--{flag.replace('_', '-')} belongs to the driving study")

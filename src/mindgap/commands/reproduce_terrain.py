@@ -60,6 +60,8 @@ def reproduce(args) -> int:
         for name in extra:
             methods.get(name)  # an unknown name is refused here, with the registered ones
         cfg = replace(cfg, methods=extra)
+    if getattr(args, "levels", False):  # gym only: mindgap reproduce refuses it for the others
+        cfg = replace(cfg, levels=True)
     out = args.out or Path("runs") / (args.name + ("-fast" if args.fast else ""))
     only = getattr(args, "job", None)
     kw = dict(fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False), only=only)

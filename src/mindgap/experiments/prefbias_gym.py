@@ -248,8 +248,10 @@ class GymConfig:
     methods: tuple[str, ...] = ()
     """More preference learners by registered name, each beside PEBBLE on every domain with PEBBLE's
     budget and schedule (:func:`~.prefbias_common.method_job`). Empty in the dissertation's presets."""
-    levels: bool = True
-    """Also train SAC on each host domain's belief env for :data:`LEVELS`' budget (``sac-level``)."""
+    levels: bool = False
+    """Also train SAC on each host domain's belief env for :data:`LEVELS`' budget (``sac-level``,
+    ``--levels``): opt-in, as the level runs are not part of Figs. 18–20 and cost about a day on a
+    2-core CPU (docs/experiments/gym.md, "The budget")."""
     level_steps: int | None = None
     """The ``sac-level`` jobs' steps (None: the source's budget, :attr:`Level.steps`)."""
     horizon: int | None = None

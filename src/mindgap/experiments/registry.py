@@ -36,7 +36,7 @@ _OPTIONS = {
     "coffee": ("participants",),
     "driving": ("seeds", "sleet", "traffic", "sanity", "importance", "answers_by"),
     "nav": ("seeds", "worlds", "methods"),
-    "gym": ("seeds", "worlds", "methods"),
+    "gym": ("seeds", "worlds", "methods", "levels"),
 }
 _TERRAIN_OPTIONS = ("seeds", "worlds")
 
@@ -56,18 +56,20 @@ def configure(
     worlds: tuple[str, ...] | None = None,
     participants: int | None = None,
     methods: tuple[str, ...] | None = None,
+    levels: bool | None = None,
 ):
     """The configuration ``mindgap reproduce NAME`` runs: the ``preset`` with the command line's options.
 
     ``seeds`` (table1 and the terrain experiments; table1's data-efficiency sweep keeps at most
     that many), ``worlds`` (the terrain experiments: named worlds, world files or factories),
-    ``participants`` (coffee), ``methods`` (nav, gym: registered preference learners run beside PEBBLE).
+    ``participants`` (coffee), ``methods`` (nav, gym: registered preference learners run beside PEBBLE), ``levels`` (gym: SAC's
+    level runs too).
     An option the experiment does not take is refused.
     """
     from dataclasses import replace
 
     cfg = module(name).preset(preset)
-    given = {"seeds": seeds, "worlds": worlds, "participants": participants, "methods": methods}
+    given = {"seeds": seeds, "worlds": worlds, "participants": participants, "methods": methods, "levels": levels}
     for option, value in given.items():
         if value is not None and option not in options(name):
             raise ValueError(f"{name} does not take {option} (it takes {', '.join(options(name))})")
@@ -85,6 +87,8 @@ def configure(
         cfg = replace(cfg, participants=participants)
     if methods:
         cfg = replace(cfg, methods=tuple(methods))
+    if levels is not None:
+        cfg = replace(cfg, levels=bool(levels))
     return cfg
 
 
@@ -152,6 +156,8 @@ def command(name: str, config, out: str | Path) -> str:
             words += ["--worlds", ",".join(worlds)]
     for method in cfg.get("methods") or ():
         words += ["--method", method]
+    if "levels" in options(name) and cfg.get("levels", True) and not ref.get("levels"):
+        words.append("--levels")
     words += ["--out", str(out)]
     line = shlex.join(words)
     return line if preset != "custom" else line + "  # nearest preset: this folder's config.json differs"
