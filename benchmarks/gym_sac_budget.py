@@ -1,10 +1,12 @@
-"""Benchmark: the gym preset's SAC oracle with smaller networks and fewer updates, against its own.
+"""Benchmark: the gym preset's SAC oracle at other network widths and update rates, side by side.
 
 The control domains' full preset is almost all SAC updates (docs/experiments/gym.md, "The
 budget"). This trains the preset's SAC oracle — ``gym_learners("full").sac`` of
 :mod:`~mindgap.experiments.prefbias_gym`, on the domain's true env through the host loop — with
-the hidden widths and ``train_every`` given, so that a cheaper setting can be held against the
-preset's: its final greedy return per seed and its wall time, one process on one core. Each run
+the hidden widths and ``train_every`` given (everything else the preset's), so that one setting can
+be held against another — the preset's 128 × 128 with an update every second step against the SAC
+levels' 256 × 256 with one every step: the final greedy return per seed and the wall time, one
+process on one core. Each run
 checkpoints into ``--out`` and resumes; ``--out/NAME.json`` keeps the result.
 
     python benchmarks/gym_sac_budget.py --domain hopper --hidden 256 --train-every 1 --seeds 3 --steps 100000
@@ -31,8 +33,10 @@ from mindgap.experiments import prefbias_gym as gym
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--domain", default="hopper", choices=("lunar", "hopper", "cheetah"))
-    p.add_argument("--hidden", type=int, default=256, help="h of the h×h actor and critics (preset: 256)")
-    p.add_argument("--train-every", type=int, default=1, help="environment steps per update (preset: 1)")
+    p.add_argument(
+        "--hidden", type=int, default=256, help="h of the h×h actor and critics (SAC levels: 256; preset 128)"
+    )
+    p.add_argument("--train-every", type=int, default=1, help="environment steps per update (SAC levels: 1; preset 2)")
     p.add_argument("--seeds", type=int, default=1)
     p.add_argument("--steps", type=int, default=100_000)
     p.add_argument("--seed", type=int, help="the run's base seed, for other seeds than the preset's (default: its own)")

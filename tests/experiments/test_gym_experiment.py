@@ -149,7 +149,10 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
         assert (out / name).stat().st_size > 0, name
     record = json.loads((out / "jobs" / "lunar__prefbias-q30.json").read_text())
     assert record["belief_model"]["belief_env"] == vacuum and len(record["paths"][0]) == pg.PATH_EPISODES
-    assert record["command"] == f"mindgap reproduce gym --fast --worlds lunar --levels --out {out} --job lunar/prefbias-q30"
+    assert (
+        record["command"]
+        == f"mindgap reproduce gym --fast --worlds lunar --levels --out {out} --job lunar/prefbias-q30"
+    )
     # a rerun computes nothing and prints the same
     stamps = {p: p.stat().st_mtime_ns for p in (out / "jobs").glob("*.json")}
     n = len(stand_ins)
@@ -253,6 +256,14 @@ def test_the_presets_and_the_jobs():
     by = {j.key: j for j in pg.jobs(replace(full, levels=True))}
     assert full.seeds == 5 and by["hopper/prefbias-q400"].cfg.total_steps == pg.FULL_STEPS["hopper"]
     assert by["cheetah/sac-level"].cfg.total_steps == pg.LEVELS["cheetah"].steps == 1_000_000
+    # the learners' SAC is the cheaper one measured against the published levels' (gym.md, "A cheaper SAC");
+    # the level runs keep the levels' own 256 × 256 with an update every step
+    level, learner = by["cheetah/sac-level"].cfg.sac, by["cheetah/sac"].cfg.sac
+    assert (learner.hidden, learner.train_every) == ((128, 128), 2) and (level.hidden, level.train_every) == (
+        (256, 256),
+        1,
+    )
+    assert replace(level, hidden=(128, 128), train_every=2) == learner
     assert by["lunar/pebble-q800"].cfg.absorbing_state == "single" and by["lunar/prefbias-q800"].cfg.prefbias.absorbing
     assert pc.teacher_of(by["lunar/prefbias-q800"]) == "biased" and pc.teacher_of(by["lunar/sac"]) == "true"
     # the learners share one schedule
