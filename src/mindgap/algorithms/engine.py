@@ -450,21 +450,8 @@ def run(
     def evaluate_at(c, episodes, step):
         return _evaluate(c, world, episodes, step, cfg.seed, seeds, ids)
 
-    return drive(
-        world,
-        learner,
-        cfg,
-        teacher,
-        meta,
-        carry,
-        w,
-        chunk,
-        evaluate_at,
-        out=out,
-        progress=progress,
-        fresh=fresh,
-        ids=ids,
-    )
+    parts = (world, learner, cfg, teacher, meta, carry, w, chunk, evaluate_at)
+    return drive(*parts, out=out, progress=progress, fresh=fresh, ids=ids)
 
 
 def drive(

@@ -226,21 +226,8 @@ def run_host(
         return evaluate_host(world, c.loop.sac.params.actor, episodes, 10_000 + cfg.seed + step, ids)
 
     try:
-        return drive(
-            world,
-            learner,
-            cfg,
-            teacher,
-            meta,
-            carry,
-            w,
-            chunk,
-            evaluate_at,
-            out=out,
-            progress=progress,
-            fresh=fresh,
-            ids=ids,
-        )
+        parts = (world, learner, cfg, teacher, meta, carry, w, chunk, evaluate_at)
+        return drive(*parts, out=out, progress=progress, fresh=fresh, ids=ids)
     finally:
         if "envs" in live:
             live["envs"].close()
