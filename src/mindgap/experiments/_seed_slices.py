@@ -1,7 +1,7 @@
 """Seed slices: one seed of a learner job trained alone, resumable, and the job assembled from its seeds.
 
-Why (issue 50): a job trains all its seeds at once, and a job of a full preset takes longer than a
-session holds a machine (gym: 2 to 6 hours a job on a 2-core CPU, docs/experiments/gym.md, "The
+Why: a job trains all its seeds at once, and a job of a full preset takes longer than a
+session holds a machine (gym: about an hour a job or more on a 2-core CPU, docs/experiments/gym.md, "The
 budget"). ``mindgap reproduce NAME --out DIR --job KEY --seed I`` trains seed ``I`` of the job alone,
 so a few hours finish whole pieces that can be committed and picked up elsewhere:
 
