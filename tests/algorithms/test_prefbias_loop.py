@@ -76,6 +76,13 @@ def icy(world_file):
     return load_world(str(world_file))
 
 
+@pytest.fixture(scope="module")
+def pocket_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("world") / "pocket.toml"
+    path.write_text(POCKET)
+    return path
+
+
 @pytest.mark.slow  # 37 s cold: three PrefBias runs. The default tier keeps resume after a kill through the same
 # engine (tests/algorithms/test_pbrl.py, PEBBLE), PrefBias's rounds (the relabel tests here) and its maps (test_prefbias_nets)
 def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
@@ -114,16 +121,23 @@ def test_resume_after_a_kill_gives_the_same_curve(icy, tmp_path, monkeypatch):
         train(icy, other, seeds=2, teacher="biased", out=tmp_path / "whole", progress=False)
 
 
+# The options off (``plain``, ``stay_head``) are the slow tier's: each compiles its own round (cold
+# ~15-20 s). The default tier keeps the round with both on, as every run uses them (``defaults``,
+# whose programs the CLI test shares), and the options' off paths in the posterior's own tests
+# (tests/algorithms/test_prefbias_inference.py: PLAIN, the stay head without the absorbing state).
 @pytest.mark.parametrize(
     "opts",
-    [{}, {"stay_head": True}, {"absorbing": True, "stay_head": True}],
+    [
+        pytest.param({}, marks=pytest.mark.slow),
+        pytest.param({"stay_head": True}, marks=pytest.mark.slow),
+        {"absorbing": True, "stay_head": True},
+    ],
     ids=["plain", "stay_head", "defaults"],
 )
-def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, tmp_path):
+def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, pocket_file, opts):
     absorbing = opts.get("absorbing", False)
     if absorbing:  # a world whose episodes end every few steps, so that queries hold absorbing steps
-        (tmp_path / "pocket.toml").write_text(POCKET)
-        icy = load_world(str(tmp_path / "pocket.toml"))
+        icy = load_world(str(pocket_file))
     flags = {"absorbing": False, "stay_head": False, **opts}
     cfg = _cli_fast(**flags)
     both_on = flags == {"absorbing": True, "stay_head": True}
@@ -174,9 +188,10 @@ def test_a_round_relabels_the_buffer_with_the_posterior_mean_reward(icy, opts, t
     assert float(jnp.abs(carry.model.dynamics.norm.out_std).min()) < 0.5  # the buffer's spread, not the placeholder's 1
 
 
-def test_cli_writes_curve_summary_and_belief(world_file, tmp_path, capsys):
+def test_cli_writes_curve_summary_and_belief(world_file, pocket_file, tmp_path, capsys):
+    """On the pocket world, with the defaults: the relabel test's ``defaults`` case compiles its programs."""
     out = tmp_path / "run"
-    args = ["prefbias", "--world", str(world_file), "--fast", "--seeds", "2", "--quiet", "--out", str(out)]
+    args = ["prefbias", "--world", str(pocket_file), "--fast", "--seeds", "2", "--quiet", "--out", str(out)]
     assert main(args) == 0
     for name in ("curve.csv", "curve.png", "trajectories.png", "belief.png", "summary.json", "checkpoint.npz"):
         assert (out / name).stat().st_size > 0, name
