@@ -9,7 +9,9 @@ no compile event, so a cold cache (``MINDGAP_JAX_CACHE=$(mktemp -d)``) shows wha
 As a script (``python scripts/compile_profile.py FILE [--top N]``) it prints the functions that
 cost the most compile seconds (with how many distinct programs and which test files compiled
 them) and the tests that cost the most: which programs to share between tests, and which tests
-compile programs no other test needs.
+compile programs no other test needs. A program's seconds land on the first test that compiles
+it: a later test of the same file (or, through the disk cache, of another) that shares it shows
+nothing, so what removing a test saves is its file's time measured cold without it.
 
 No library records compile time per test; this is the few lines that join JAX's own events to
 pytest's hooks.
