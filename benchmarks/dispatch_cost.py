@@ -22,26 +22,17 @@ dispatched case (``--only dispatched --steps 5000``): docs/benchmarks.md has wha
 from __future__ import annotations
 
 import argparse
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from host_loop_profile import best_of
 from mindgap import rng
 from mindgap.algorithms.sac import SACConfig, sac_init, sac_update
 from mindgap.data.batch import Batch
 
 CASES = ("scanned", "dispatched", "packed")
-
-
-def best_of(run, reps: int) -> float:
-    best = float("inf")
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        run()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def packer(tree):
