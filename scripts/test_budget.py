@@ -7,6 +7,11 @@ LOG is the file ``MINDGAP_TEST_CPU_LOG`` names during a run (``scripts/test.sh``
 line per test file, its CPU seconds (the test process and its finished subprocesses) and wall seconds.
 A file's budget is what it took on a cold run on the quiet 2-core machine, plus a quarter, rounded up
 to 5 s; a change that makes a file cost more shows here, and a rewritten table shows in its diff.
+
+Machines of one kind differ (a later one took 1.31 times the table's times, file for file), so the
+report also gives this machine's pace — the median, over the files of 10 CPU-s or more in the table,
+of their time here against the table's measured column — and says which files are over their
+budget even at that pace: those grew, where the others only ran on a slower machine.
 """
 
 from __future__ import annotations
@@ -42,6 +47,24 @@ def budgets(doc: str) -> dict[str, int]:
     return {m["file"]: int(m["budget"]) for line in table.splitlines() if (m := ROW.match(line))}
 
 
+def measured_column(doc: str) -> dict[str, float]:
+    """The budget table's measured column: test file → CPU seconds on the machine that wrote it."""
+    if BEGIN not in doc:
+        return {}
+    table = doc[doc.index(BEGIN) : doc.index(END)]
+    return {m["file"]: float(m["measured"]) for line in table.splitlines() if (m := ROW.match(line))}
+
+
+def pace(times: dict[str, tuple[float, float]], column: dict[str, float], least: float = 10.0) -> float | None:
+    """This run's CPU time against the table's, the median over files the table measured at ``least`` s or
+    more (None with fewer than 5 such files)."""
+    ratios = sorted(times[f][0] / t for f, t in column.items() if t >= least and f in times)
+    if len(ratios) < 5:
+        return None
+    mid = len(ratios) // 2
+    return ratios[mid] if len(ratios) % 2 else (ratios[mid - 1] + ratios[mid]) / 2
+
+
 def table(times: dict[str, tuple[float, float]]) -> str:
     rows = ["| test file | budget, CPU-s | measured cold, CPU-s |", "|---|---|---|"]
     for f, (cpu, _) in sorted(times.items(), key=lambda kv: -kv[1][0]):
@@ -70,13 +93,23 @@ def main() -> int:
     over = [(f, cpu, limit[f]) for f, (cpu, _) in times.items() if f in limit and cpu > limit[f]]
     new = [(f, cpu) for f, (cpu, _) in times.items() if f not in limit and cpu >= 5]
     total = sum(cpu for cpu, _ in times.values())
+    speed = pace(times, measured_column(doc))
+    scale = max(speed or 1.0, 1.0)
+    grew = [f for f, cpu, b in over if cpu > b * scale]
     for f, cpu, b in sorted(over, key=lambda x: x[1] - x[2], reverse=True):
-        print(f"test_budget: {f} took {cpu:.0f} CPU-s, over its budget of {b}")
+        at_pace = (
+            f" and of {b * scale:.0f} at this machine's pace"
+            if f in grew
+            else f" ({b * scale:.0f} at this machine's pace)"
+        )
+        print(f"test_budget: {f} took {cpu:.0f} CPU-s, over its budget of {b}" + (at_pace if scale > 1 else ""))
     for f, cpu in sorted(new, key=lambda x: -x[1]):
         print(f"test_budget: {f} took {cpu:.0f} CPU-s and has no budget in docs/development.md")
+    if speed is not None:
+        print(f"test_budget: this machine's pace: {speed:.2f} times the table's measured column (median of its files)")
     print(
         f"test_budget: {len(times)} test files, {total / 60:.1f} CPU-minutes in the test processes; "
-        f"{len(over)} over budget, {len(new)} without one"
+        f"{len(over)} over budget ({len(grew)} also at this machine's pace), {len(new)} without one"
     )
     return 0
 
