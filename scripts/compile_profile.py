@@ -2,8 +2,8 @@
 
 As a plugin (``PYTHONPATH=scripts pytest -p compile_profile …`` with ``MINDGAP_COMPILE_LOG=FILE``)
 it listens to JAX's monitoring events (tracing, lowering to MLIR, XLA's compilation, each with the
-function's name) and appends one JSON line per test to ``FILE``: the test's id, its wall seconds,
-and per function the seconds of each stage and how many programs it compiled. A cache hit costs
+function's name) and appends one JSON line per test to ``FILE``: the test's id and, per function,
+the seconds of each stage and how many programs it compiled. A cache hit costs
 no compile event, so a cold cache (``MINDGAP_JAX_CACHE=$(mktemp -d)``) shows what compiling costs.
 
 As a script (``python scripts/compile_profile.py FILE [--top N]``) it prints the functions that
