@@ -64,6 +64,10 @@ def pytest_runtest_logfinish(nodeid, location):
     _current["funs"] = None
 
 
+def _seconds(r: dict) -> float:
+    return r["trace"] + r["lower"] + r["compile"]
+
+
 def summary(path: str, top: int) -> None:
     """Print the costliest functions and tests of the log at ``path``."""
     per_fun = collections.defaultdict(
@@ -78,14 +82,14 @@ def summary(path: str, top: int) -> None:
             for s in ("trace", "lower", "compile", "programs"):
                 row[s] += r[s]
             row["files"].add(rec["test"].split("::")[0])
-            spent += r["trace"] + r["lower"] + r["compile"]
+            spent += _seconds(r)
         per_test.append((spent, rec["test"]))
-    total = sum(r["trace"] + r["lower"] + r["compile"] for r in per_fun.values())
+    total = sum(_seconds(r) for r in per_fun.values())
     print(f"{path}: {len(per_test)} tests, {total:.0f} s tracing + lowering + compiling in all")
     print(f"\nfunctions by their seconds (trace + lower + compile), top {top}:")
-    rows = sorted(per_fun.items(), key=lambda kv: -(kv[1]["trace"] + kv[1]["lower"] + kv[1]["compile"]))
+    rows = sorted(per_fun.items(), key=lambda kv: -_seconds(kv[1]))
     for name, r in rows[:top]:
-        s = r["trace"] + r["lower"] + r["compile"]
+        s = _seconds(r)
         print(f"{s:8.1f} s  {r['programs']:5d} programs  {len(r['files']):3d} files  {name}")
     print(f"\ntests by their seconds, top {top}:")
     for s, test in sorted(per_test, reverse=True)[:top]:

@@ -20,6 +20,7 @@ import argparse
 import json
 import math
 import re
+import statistics
 import sys
 from pathlib import Path
 
@@ -39,30 +40,29 @@ def measured(log: Path) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _rows(doc: str) -> list[re.Match]:
+    """The rows of the budget table in docs/development.md."""
+    if BEGIN not in doc:
+        return []
+    table = doc[doc.index(BEGIN) : doc.index(END)]
+    return [m for line in table.splitlines() if (m := ROW.match(line))]
+
+
 def budgets(doc: str) -> dict[str, int]:
     """The budget table of docs/development.md: test file → CPU seconds."""
-    if BEGIN not in doc:
-        return {}
-    table = doc[doc.index(BEGIN) : doc.index(END)]
-    return {m["file"]: int(m["budget"]) for line in table.splitlines() if (m := ROW.match(line))}
+    return {m["file"]: int(m["budget"]) for m in _rows(doc)}
 
 
 def measured_column(doc: str) -> dict[str, float]:
     """The budget table's measured column: test file → CPU seconds on the machine that wrote it."""
-    if BEGIN not in doc:
-        return {}
-    table = doc[doc.index(BEGIN) : doc.index(END)]
-    return {m["file"]: float(m["measured"]) for line in table.splitlines() if (m := ROW.match(line))}
+    return {m["file"]: float(m["measured"]) for m in _rows(doc)}
 
 
 def pace(times: dict[str, tuple[float, float]], column: dict[str, float], least: float = 10.0) -> float | None:
     """This run's CPU time against the table's, the median over files the table measured at ``least`` s or
     more (None with fewer than 5 such files)."""
-    ratios = sorted(times[f][0] / t for f, t in column.items() if t >= least and f in times)
-    if len(ratios) < 5:
-        return None
-    mid = len(ratios) // 2
-    return ratios[mid] if len(ratios) % 2 else (ratios[mid - 1] + ratios[mid]) / 2
+    ratios = [times[f][0] / t for f, t in column.items() if t >= least and f in times]
+    return statistics.median(ratios) if len(ratios) >= 5 else None
 
 
 def table(times: dict[str, tuple[float, float]]) -> str:
