@@ -51,8 +51,11 @@ def best_of(run, reps: int) -> float:
     return best
 
 
-def profile(world, hidden: int, steps: int, reps: int, starts: int = 1000) -> dict:
-    """Microseconds per step of each part (module docstring) for ``hidden`` × ``hidden`` networks."""
+def host_loop(world, hidden: int, steps: int, reps: int, starts: int = 1000):
+    """One seed's host loop for ``hidden`` × ``hidden`` networks, ready to step: ``host_steps(n, phase,
+    update=True, env_only=False)`` runs ``n`` host steps (the env's step, then ``advance``), and the
+    state it keeps (``state["loop"]``, the learner's ``sac_cfg`` and ``knn``) for the figures built
+    beside it."""
     sac = SACConfig(hidden=(hidden, hidden), batch_size=256, learning_starts=starts)
     cfg = method_config("sac", total_steps=starts + (2 * reps + 2) * steps, chunk=steps, sac=sac)
     learner = SAC.learner(cfg)
@@ -62,6 +65,7 @@ def profile(world, hidden: int, steps: int, reps: int, starts: int = 1000) -> di
     envs = hl._Envs(world, (0,), 0)
     state = {"loop": carry.loop._replace(env=jnp.asarray(envs.obs), t=jnp.zeros(1, jnp.int32))}
     state["loop"], state["act"] = hl.first_action(state["loop"], sac_cfg, "random")
+    state.update(sac_cfg=sac_cfg, knn=cfg.knn)
 
     def host_steps(n: int, phase: str, update: bool = True, env_only: bool = False):
         act = state["act"]
@@ -76,8 +80,21 @@ def profile(world, hidden: int, steps: int, reps: int, starts: int = 1000) -> di
         state["act"] = jax.block_until_ready(act)
 
     host_steps(starts, "random")  # fill the buffer past a batch
-    host_steps(2, "train")  # compile both programs
-    host_steps(2, "train", update=False)
+    host_steps(2, "train")  # compile the training step
+    return host_steps, state
+
+
+def host_step_seconds(world, hidden: int, steps: int, reps: int, starts: int = 1000) -> float:
+    """Seconds of one whole host step in the ``train`` phase (one seed): best of ``reps`` runs of ``steps``."""
+    host_steps, _ = host_loop(world, hidden, steps, reps, starts)
+    return best_of(lambda: host_steps(steps, "train"), reps) / steps
+
+
+def profile(world, hidden: int, steps: int, reps: int, starts: int = 1000) -> dict:
+    """Microseconds per step of each part (module docstring) for ``hidden`` × ``hidden`` networks."""
+    host_steps, state = host_loop(world, hidden, steps, reps, starts)
+    sac_cfg, knn = state["sac_cfg"], state["knn"]
+    host_steps(2, "train", update=False)  # compile the step without its update
     whole = best_of(lambda: host_steps(steps, "train"), reps)
     bare = best_of(lambda: host_steps(steps, "train", update=False), reps)
     env_alone = best_of(lambda: host_steps(steps, "train", env_only=True), reps)
@@ -86,16 +103,14 @@ def profile(world, hidden: int, steps: int, reps: int, starts: int = 1000) -> di
 
     def updates(sac_state, replay):
         def body(c, k):
-            return sac_updates(c, replay, k, one.steps, sac_cfg, "train", cfg.knn), None
+            return sac_updates(c, replay, k, one.steps, sac_cfg, "train", knn), None
 
         return jax.lax.scan(body, sac_state, keys)[0]
 
     scan = jax.jit(updates)
     jax.block_until_ready(scan(one.sac, one.replay))
     update = best_of(lambda: jax.block_until_ready(scan(one.sac, one.replay)), reps)
-    single = jax.jit(
-        lambda c, replay, k: sac_updates(c, replay, k, one.steps, sac_cfg, "train", cfg.knn), donate_argnums=0
-    )
+    single = jax.jit(lambda c, replay, k: sac_updates(c, replay, k, one.steps, sac_cfg, "train", knn), donate_argnums=0)
     held = {"sac": jax.tree.map(jnp.array, one.sac)}  # own buffers: donated every call
 
     def dispatched():

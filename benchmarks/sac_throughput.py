@@ -16,7 +16,10 @@ chunk boundaries. SB3 runs on whichever of 1 or all cores' torch threads is fast
 matmul check just before its run (``--torch-threads`` fixes it): on a shared machine
 two OpenMP threads slow down many times over as soon as another process takes a core.
 The sbx and SB3 packages come from the ``bench`` extra; a missing one is skipped with a
-message.
+message. Every JAX row (mindgap's and sbx's, every size) runs before the first SB3 row: once
+torch's OpenMP threads have run in a process, their spin-waiting takes the second core from
+XLA's later work (measured: mindgap's host loop at 256×256 141 steps/s after an SB3 run, 214
+before it, 216 after it with ``OMP_WAIT_POLICY=PASSIVE``, which in turn slows SB3 twofold).
 
 Arithmetic: the FLOPs of one SAC update count the matrix multiplications of the networks
 (2 per multiply-add, :func:`~mindgap.models.mlp.mlp_flops`) and nothing else (no
@@ -36,7 +39,14 @@ weights, so its column slightly understates the rate it computes at); the refere
 a plain float32 matrix multiplication ``[batch, h] · [h, h]`` repeated in a chain, with
 XLA (what the JAX updates use) and with NumPy's BLAS, best of the two.
 
-    python benchmarks/sac_throughput.py [--sizes 256 128 64] [--chunk 250] [--chunks 4] [--seeds 8] [--skip sb3 sbx]
+The host loop (:mod:`~mindgap.algorithms.host_loop`: a gymnasium env stepped on the host, one
+compiled dispatch a step) is timed on ``--host-env`` (Pendulum-v1 by default) the same way, best
+of ``--chunks`` chunks of ``--chunk`` training steps after the random steps and a warm-up, with
+``host_loop_profile.host_step_seconds`` (one seed, the SAC oracle's update), beside sbx and SB3 on
+that env; its FLOPs count that env's observation and action sizes. The line after those rows is
+the host loop's rate against the jitted loop's (one seed each, the same networks).
+
+    python benchmarks/sac_throughput.py [--sizes 256 128 64] [--chunk 250] [--chunks 4] [--seeds 8] [--skip sb3 sbx] [--host-env Pendulum-v1|none]
 """
 
 from __future__ import annotations
@@ -44,15 +54,18 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from collections.abc import Callable
 from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from host_loop_profile import host_step_seconds
 from mindgap import rng
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
+from mindgap.envs.gym_world import make_gym_world
 from mindgap.envs.terrain import TERRAIN_ENV, load_world
 from mindgap.envs.terrain.gym_env import TerrainEnv
 from mindgap.models.mlp import mlp_flops
@@ -60,10 +73,10 @@ from mindgap.models.mlp import mlp_flops
 OBS_DIM, ACT_DIM = 2, 2
 
 
-def update_flops(hidden: tuple[int, ...], batch: int) -> int:
+def update_flops(hidden: tuple[int, ...], batch: int, obs_dim: int = OBS_DIM, act_dim: int = ACT_DIM) -> int:
     """Matrix-multiply FLOPs of one SAC update (see the module docstring): 4A + 12C."""
-    a = mlp_flops((OBS_DIM, *hidden, 2 * ACT_DIM), batch)
-    c = mlp_flops((OBS_DIM + ACT_DIM, *hidden, 1), batch)
+    a = mlp_flops((obs_dim, *hidden, 2 * act_dim), batch)
+    c = mlp_flops((obs_dim + act_dim, *hidden, 1), batch)
     return 4 * a + 12 * c
 
 
@@ -136,8 +149,9 @@ def time_ours(world_params, cfg: SACConfig, n_seeds: int, chunk: int, chunks: in
 # Stable-Baselines3 and sbx through the gymnasium adapter
 
 
-def time_library(lib: str, world: str, cfg: SACConfig, chunk: int, chunks: int) -> float:
-    """Env steps/s of SB3's or sbx's ``SAC.learn``: best of ``chunks`` timed chunks after one warm-up chunk."""
+def time_library(lib: str, make_env: Callable, cfg: SACConfig, chunk: int, chunks: int) -> float:
+    """Env steps/s of SB3's or sbx's ``SAC.learn`` on ``make_env()``: best of ``chunks`` timed chunks after
+    one warm-up chunk."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     if lib == "sb3":
@@ -161,7 +175,7 @@ def time_library(lib: str, world: str, cfg: SACConfig, chunk: int, chunks: int) 
 
     model = SAC(
         "MlpPolicy",
-        TerrainEnv(world),
+        make_env(),
         learning_rate=cfg.lr,
         buffer_size=total,
         learning_starts=cfg.learning_starts,
@@ -237,6 +251,9 @@ def main():
     p.add_argument("--seed-chunks", type=int, default=2, help="timed chunks of the vmapped run")
     p.add_argument("--torch-threads", type=int, default=None, help="torch threads (default: faster of 1 and all cores)")
     p.add_argument("--skip", nargs="*", default=[], choices=["sb3", "sbx"], help="libraries to leave out")
+    p.add_argument(
+        "--host-env", default="Pendulum-v1", help="gymnasium env of the host-loop rows ('none' leaves them out)"
+    )
     args = p.parse_args()
 
     cores = len(os.sched_getaffinity(0))
@@ -253,6 +270,7 @@ def main():
             args.skip.append(lib)
 
     world = load_world(args.world)
+    host = None if args.host_env == "none" else make_gym_world(args.host_env)
     adapter = time_adapter(args.world)
     print(
         f"SAC on terrain world {args.world} (SB3 and sbx through the gymnasium adapter); batch 256, "
@@ -264,36 +282,71 @@ def main():
     )
     print(f"gymnasium adapter alone, random actions: {adapter:,.0f} steps/s")
     print(
-        f"{'networks':<9} {'runner':<34} {'env steps/s':>11} {'GFLOP/s':>8} {'of matmul':>9} {'vs sbx':>7} {'vs SB3':>7}"
+        f"{'networks':<9} {'env':<12} {'runner':<34} {'env steps/s':>11} {'GFLOP/s':>8} {'of matmul':>9} {'vs sbx':>7} {'vs SB3':>7}"
     )
-    for h in args.sizes:
-        cfg = SACConfig(hidden=(h, h), batch_size=256, utd=1, learning_starts=args.learning_starts)
-        flops = update_flops(cfg.hidden, cfg.batch_size)
-        mm_xla, mm_np = matmul_gflops(cfg.batch_size, h)
-        mm = max(mm_xla, mm_np)
-        rows = [("mindgap SAC, 1 seed", time_ours(world.params, cfg, 1, args.chunk, args.chunks))]
+    cfgs = {
+        h: SACConfig(hidden=(h, h), batch_size=256, utd=1, learning_starts=args.learning_starts) for h in args.sizes
+    }
+    envs = {args.world: lambda: TerrainEnv(args.world)}
+    if host is not None:
+        envs[args.host_env] = lambda: host.make(0)[0]
+    rates = {(h, where): {} for h in args.sizes for where in envs}  # (size, env) → {runner: steps/s}
+    matmul = {}
+    # JAX first, every size; SB3 (torch) last: once torch's OpenMP threads have run, they slow XLA's
+    # later work in the same process (docs/benchmarks.md, "SAC throughput").
+    for h, cfg in cfgs.items():
+        matmul[h] = matmul_gflops(cfg.batch_size, h)
+        mine = rates[h, args.world]
+        mine["mindgap SAC, 1 seed"] = time_ours(world.params, cfg, 1, args.chunk, args.chunks)
         if args.seeds > 1:
             rate = time_ours(world.params, cfg, args.seeds, args.chunk, args.seed_chunks)
-            rows.append((f"mindgap SAC, {args.seeds} seeds vmapped", rate))
-        ref = {}
-        for lib, name in (("sbx", "sbx SAC"), ("sb3", "Stable-Baselines3 SAC")):
-            if lib == "sb3" and lib not in args.skip:
-                import torch
+            mine[f"mindgap SAC, {args.seeds} seeds vmapped"] = rate
+        if host is not None:
+            hosted = 1.0 / host_step_seconds(host, h, args.chunk, args.chunks, args.learning_starts)
+            rates[h, args.host_env]["mindgap host loop, 1 seed"] = hosted
+        if "sbx" not in args.skip:
+            for where, make_env in envs.items():
+                rates[h, where]["sbx"] = time_library("sbx", make_env, cfg, args.chunk, args.chunks)
+    if "sb3" not in args.skip:
+        import torch
 
-                threads = args.torch_threads or pick_torch_threads(cfg.batch_size, h, cores)
-                torch.set_num_threads(threads)
-                name += f" ({threads} thread{'s' if threads > 1 else ''})"
-            if lib not in args.skip:
-                ref[lib] = time_library(lib, args.world, cfg, args.chunk, args.chunks)
-                rows.append((name, ref[lib]))
+        for h, cfg in cfgs.items():
+            threads = args.torch_threads or pick_torch_threads(cfg.batch_size, h, cores)
+            torch.set_num_threads(threads)
+            for where, make_env in envs.items():
+                rates[h, where]["sb3"] = time_library("sb3", make_env, cfg, args.chunk, args.chunks)
+                rates[h, where]["sb3 threads"] = threads
+    for h, cfg in cfgs.items():
+        mm = max(matmul[h])
         net = f"{h}×{h}"
-        for name, rate in rows:
-            gf = rate * flops / 1e9
-            ratios = [f"{rate / ref[lib]:>6.2f}×" if lib in ref else f"{'-':>7}" for lib in ("sbx", "sb3")]
-            print(f"{net:<9} {name:<34} {rate:>11,.0f} {gf:>8.1f} {gf / mm:>8.0%} {ratios[0]} {ratios[1]}", flush=True)
+        for where in envs:
+            dims = () if where == args.world else (host.env.observation_space.dim, host.env.action_space.dim)
+            report(net, where, rates[h, where], update_flops(cfg.hidden, cfg.batch_size, *dims), mm)
+        if host is not None:
+            ratio = rates[h, args.host_env]["mindgap host loop, 1 seed"] / rates[h, args.world]["mindgap SAC, 1 seed"]
+            print(f"{net:<9} host loop ({args.host_env}) / jitted loop ({args.world}), 1 seed: {ratio:.2f}")
         print(
-            f"{net:<9} plain matmul [256×{h}]·[{h}×{h}]: XLA {mm_xla:.1f}, NumPy {mm_np:.1f} GFLOP/s; "
-            f"one update = {flops / 1e9:.3f} GFLOP",
+            f"{net:<9} plain matmul [256×{h}]·[{h}×{h}]: XLA {matmul[h][0]:.1f}, NumPy {matmul[h][1]:.1f} GFLOP/s; "
+            f"one update on {args.world} = {update_flops(cfg.hidden, cfg.batch_size) / 1e9:.3f} GFLOP",
+            flush=True,
+        )
+
+
+def report(net: str, where: str, rates: dict, flops: float, mm: float) -> None:
+    """One line a runner on env ``where``: steps/s, GFLOP/s at ``flops`` per update, its share of the best
+    matmul ``mm``, and its ratios to sbx and SB3 there."""
+    names = {"sbx": "sbx SAC", "sb3": "Stable-Baselines3 SAC"}
+    for runner, rate in rates.items():
+        if runner == "sb3 threads":
+            continue
+        name = names.get(runner, runner)
+        if runner == "sb3":
+            threads = rates["sb3 threads"]
+            name += f" ({threads} thread{'s' if threads > 1 else ''})"
+        gf = rate * flops / 1e9
+        ratios = [f"{rate / rates[lib]:>6.2f}×" if lib in rates else f"{'-':>7}" for lib in ("sbx", "sb3")]
+        print(
+            f"{net:<9} {where:<12} {name:<34} {rate:>11,.0f} {gf:>8.1f} {gf / mm:>8.0%} {ratios[0]} {ratios[1]}",
             flush=True,
         )
 

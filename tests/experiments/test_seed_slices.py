@@ -30,7 +30,7 @@ from mindgap.experiments import _seed_slices as sl
 
 BASE = ["reproduce", "nav", "--fast", "--quiet", "--worlds", "nav1"]
 JOB = "nav1/sac"
-OWN = {"seed", "seconds", "command", "seeds_apart", "seed_maps"}
+OWN = {"seed", "seconds", "cpu_seconds", "command", "seeds_apart", "seed_maps"}
 
 
 def reproduce(out, *extra, seeds=2):
@@ -157,6 +157,7 @@ def test_assemble_joins_seeds_and_averages_maps_from_each_seed_s_values():
             "belief_model": {"path": f"/home/{i}/cache.npz", "held_out_log_lik": 1.5},
             "seed": i,
             "seconds": 2.0,
+            "cpu_seconds": 1.5 + i,
             "seed_maps": {"belief_map": [[[None if np.isnan(x) else float(x) for x in row] for row in maps[i]]]},
         }
 
@@ -166,6 +167,9 @@ def test_assemble_joins_seeds_and_averages_maps_from_each_seed_s_values():
     mean = np.stack(maps).mean(0)
     assert rec["belief_map"] == [[round(float(mean[0, 0]), 5), None], [0.75, 1.125]]
     assert rec["belief_model"]["path"] == "/home/0/cache.npz" and rec["seconds"] == 4.0
+    assert rec["cpu_seconds"] == 4.0
+    no_cpu = {k: v for k, v in one(1).items() if k != "cpu_seconds"}
+    assert "cpu_seconds" not in sl.assemble([one(0), no_cpu])  # a seed without it: no sum claimed
     assert "seed" not in rec and "seed_maps" not in rec and rec["seeds_apart"] is True
     with pytest.raises(ValueError, match="differ in 'label'"):
         sl.assemble([one(0), {**one(1), "label": "PEBBLE"}])

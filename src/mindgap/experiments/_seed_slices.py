@@ -61,8 +61,10 @@ PER_SEED = (
 SEED_ZERO = ("rollout",)
 """Record fields made from seed 0 alone (the gym experiment's animation of seed 0's policy)."""
 
-_OWN = ("seed", "seconds", "command", "seed_maps")
-"""A partial record's own fields, not the job's."""
+_OWN = ("seed", "seconds", "cpu_seconds", "command", "seed_maps")
+"""A partial record's own fields, not the job's. ``seconds`` is the slice's wall time,
+``cpu_seconds`` the process's CPU time over it: a slice stopped for a while (``kill -STOP``) or
+sharing its core shows in the first and not in the second."""
 
 _LOCAL = {"belief_model": ("path",)}
 """Entries of shared fields that name the machine a seed ran on (the learned belief's cache file):
@@ -116,10 +118,11 @@ def run_seeds(
         if path.exists():
             rec = json.loads(path.read_text())
             continue
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         rec = compute(folder, job, seeds, fresh=fresh, progress=progress, seed_ids=(i,))
         rec.update(key=job.key, world=job.world, method=job.method, label=job.label, tags=job.tags, seed=i)
         rec["seconds"] = time.perf_counter() - t0
+        rec["cpu_seconds"] = time.process_time() - c0
         if rerun:
             rec["command"] = f"{rerun} --job {job.key} --seed {i}"
         atomic_write(path, json.dumps(rec))
@@ -201,6 +204,9 @@ def assemble(partials: list[dict]) -> dict:
         else:
             rec[name] = value
     rec["seconds"] = sum(p.get("seconds", 0.0) for p in partials)
+    cpu = [p.get("cpu_seconds") for p in partials]
+    if all(c is not None for c in cpu):
+        rec["cpu_seconds"] = sum(cpu)
     rec["seeds_apart"] = True
     return rec
 
