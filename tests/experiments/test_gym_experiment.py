@@ -162,6 +162,15 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
     check_report(out, tmp_path / "report", "gym")
 
 
+def test_assemble_reads_a_run_whose_other_domains_have_no_job_yet(stand_ins, tmp_path, capsys):
+    out = tmp_path / "gym"
+    base = ["reproduce", "gym", "--fast", "--quiet", "--worlds", "lunar,hopper", "--out", str(out)]
+    assert main([*base, "--job", "lunar/sac"]) == 0
+    assert main([*base, "--assemble"]) == 0
+    assert [(r["world"], r["method"]) for r in rows(out / "results.csv")] == [("lunar", "sac")]
+    assert (out / "curves_lunar.png").exists() and not (out / "curves_hopper.png").exists()
+
+
 def test_the_claims_on_hand_made_rows():
     def row(method, ret, std=10.0, queries=800, seeds=5):
         return dict(

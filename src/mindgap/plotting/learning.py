@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -40,7 +41,7 @@ def save_learning_curves(
     ax.set_xlabel("environment steps")
     ax.set_ylabel("return (true reward)")
     if title:
-        ax.set_title(title, fontsize=9)
+        ax.set_title(textwrap.fill(title, 75), fontsize=9)  # a long title on two lines, not cut at the edges
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     fig.tight_layout()
