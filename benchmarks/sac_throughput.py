@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 from collections.abc import Callable
 from functools import partial
@@ -66,6 +67,7 @@ from mindgap import rng
 from mindgap.algorithms.sac import SACConfig
 from mindgap.algorithms.sac_loop import loop_init, run_chunk
 from mindgap.envs.gym_world import make_gym_world
+from mindgap.envs.interface import EnvError
 from mindgap.envs.terrain import TERRAIN_ENV, load_world
 from mindgap.envs.terrain.gym_env import TerrainEnv
 from mindgap.models.mlp import mlp_flops
@@ -270,7 +272,10 @@ def main():
             args.skip.append(lib)
 
     world = load_world(args.world)
-    host = None if args.host_env == "none" else make_gym_world(args.host_env)
+    try:
+        host = None if args.host_env == "none" else make_gym_world(args.host_env)
+    except EnvError as e:
+        p.error(str(e))
     adapter = time_adapter(args.world)
     print(
         f"SAC on terrain world {args.world} (SB3 and sbx through the gymnasium adapter); batch 256, "
@@ -295,6 +300,7 @@ def main():
     # JAX first, every size; SB3 (torch) last: once torch's OpenMP threads have run, they slow XLA's
     # later work in the same process (docs/benchmarks.md, "SAC throughput").
     for h, cfg in cfgs.items():
+        print(f"measuring {h}×{h}: matmul, mindgap, sbx …", file=sys.stderr, flush=True)
         matmul[h] = matmul_gflops(cfg.batch_size, h)
         mine = rates[h, args.world]
         mine["mindgap SAC, 1 seed"] = time_ours(world.params, cfg, 1, args.chunk, args.chunks)
@@ -311,6 +317,7 @@ def main():
         import torch
 
         for h, cfg in cfgs.items():
+            print(f"measuring {h}×{h}: Stable-Baselines3 …", file=sys.stderr, flush=True)
             threads = args.torch_threads or pick_torch_threads(cfg.batch_size, h, cores)
             torch.set_num_threads(threads)
             for where, make_env in envs.items():
