@@ -254,7 +254,9 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
         for q, v in (("speed", 3), ("front_distance", 5), ("relative_speed", 3), ("lane_following", 4)):
             page.check(f"input[name={q}][value='{v}']")
         _shot(page, "8-driving-questionnaire")
-        with page.expect_navigation():
+        # onto item pages the navigation waits for the document only: their animations are drawn on
+        # request (seconds each on a busy machine) and _images_drawn waits for them, up to 60 s
+        with page.expect_navigation(wait_until="domcontentloaded"):
             page.click("#continue")
         items = {it["id"]: it for it in Store(db).items()}
         for _ in range(2):  # the bias question and the sanity item, in this participant's order
@@ -273,7 +275,7 @@ def test_a_participant_completes_both_phases_of_the_driving_study_in_chromium(br
                 assert max(page.eval_on_selector_all("main img", shown)) <= PHONE["width"] - 20
                 _shot(page, "7-phone-driving-bias-item")
                 page.set_viewport_size({"width": 1280, "height": 900})
-            with page.expect_navigation():
+            with page.expect_navigation(wait_until="domcontentloaded"):
                 page.click("#submit")
         assert "Waiting for the next question" in page.content()
         # a run posts one query (EPS's host teacher); the waiting page refreshes itself and shows it
