@@ -162,7 +162,7 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
     check_report(out, tmp_path / "report", "gym")
 
 
-def test_assemble_reads_a_run_whose_other_domains_have_no_job_yet(stand_ins, tmp_path, capsys):
+def test_assemble_reads_a_run_whose_other_domains_have_no_job_yet(stand_ins, tmp_path):
     out = tmp_path / "gym"
     base = ["reproduce", "gym", "--fast", "--quiet", "--worlds", "lunar,hopper", "--out", str(out)]
     assert main([*base, "--job", "lunar/sac"]) == 0
