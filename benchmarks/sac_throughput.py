@@ -296,7 +296,7 @@ def main():
     if host is not None:
         envs[args.host_env] = lambda: host.make(0)[0]
     rates = {(h, where): {} for h in args.sizes for where in envs}  # (size, env) → {runner: steps/s}
-    matmul = {}
+    matmul, sb3_threads = {}, {}
     # JAX first, every size; SB3 (torch) last: once torch's OpenMP threads have run, they slow XLA's
     # later work in the same process (docs/benchmarks.md, "SAC throughput").
     for h, cfg in cfgs.items():
@@ -318,17 +318,16 @@ def main():
 
         for h, cfg in cfgs.items():
             print(f"measuring {h}×{h}: Stable-Baselines3 …", file=sys.stderr, flush=True)
-            threads = args.torch_threads or pick_torch_threads(cfg.batch_size, h, cores)
-            torch.set_num_threads(threads)
+            sb3_threads[h] = args.torch_threads or pick_torch_threads(cfg.batch_size, h, cores)
+            torch.set_num_threads(sb3_threads[h])
             for where, make_env in envs.items():
                 rates[h, where]["sb3"] = time_library("sb3", make_env, cfg, args.chunk, args.chunks)
-                rates[h, where]["sb3 threads"] = threads
     for h, cfg in cfgs.items():
         mm = max(matmul[h])
         net = f"{h}×{h}"
         for where in envs:
             dims = () if where == args.world else (host.env.observation_space.dim, host.env.action_space.dim)
-            report(net, where, rates[h, where], update_flops(cfg.hidden, cfg.batch_size, *dims), mm)
+            report(net, where, rates[h, where], update_flops(cfg.hidden, cfg.batch_size, *dims), mm, sb3_threads.get(h))
         if host is not None:
             ratio = rates[h, args.host_env]["mindgap host loop, 1 seed"] / rates[h, args.world]["mindgap SAC, 1 seed"]
             print(f"{net:<9} host loop ({args.host_env}) / jitted loop ({args.world}), 1 seed: {ratio:.2f}")
@@ -339,21 +338,16 @@ def main():
         )
 
 
-def report(net: str, where: str, rates: dict, flops: float, mm: float) -> None:
+def report(net: str, where: str, rates: dict, flops: float, mm: float, threads: int | None) -> None:
     """One line a runner on env ``where``: steps/s, GFLOP/s at ``flops`` per update, its share of the best
-    matmul ``mm``, and its ratios to sbx and SB3 there."""
-    names = {"sbx": "sbx SAC", "sb3": "Stable-Baselines3 SAC"}
+    matmul ``mm``, and its ratios to sbx and SB3 there (SB3 ran on ``threads`` torch threads)."""
+    names = {"sbx": "sbx SAC", "sb3": f"Stable-Baselines3 SAC ({threads} thread{'s' if threads != 1 else ''})"}
     for runner, rate in rates.items():
-        if runner == "sb3 threads":
-            continue
-        name = names.get(runner, runner)
-        if runner == "sb3":
-            threads = rates["sb3 threads"]
-            name += f" ({threads} thread{'s' if threads > 1 else ''})"
         gf = rate * flops / 1e9
         ratios = [f"{rate / rates[lib]:>6.2f}×" if lib in rates else f"{'-':>7}" for lib in ("sbx", "sb3")]
         print(
-            f"{net:<9} {where:<12} {name:<34} {rate:>11,.0f} {gf:>8.1f} {gf / mm:>8.0%} {ratios[0]} {ratios[1]}",
+            f"{net:<9} {where:<12} {names.get(runner, runner):<34} {rate:>11,.0f} {gf:>8.1f} {gf / mm:>8.0%} "
+            f"{ratios[0]} {ratios[1]}",
             flush=True,
         )
 

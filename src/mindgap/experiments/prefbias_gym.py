@@ -448,8 +448,7 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
     learned = [r for r in learned if r["method"] != "sac-level"]
     rows, curves, claims, table, cond_table = [], [], [], [], []
     for name in cfg.worlds:
-        oracle = [oracles[name]] if name in oracles else []  # a world none of whose jobs has run yet has none
-        recs = sorted([r for r in learned if r["world"] == name] + oracle, key=_order)
+        recs = sorted([r for r in [*learned, *oracles.values()] if r["world"] == name], key=_order)
         ref = refs.get(name)
         mine = []
         for r in recs:
