@@ -72,7 +72,9 @@ def stand_ins(monkeypatch):
 
     def fake_fit(belief_world, cfg, *, true_world=None, **kw):
         calls.append(("fit", belief_world.name, cfg.transitions, ()))
-        record = {"belief_env": belief_world.name, "config": {"dynamics": {"hidden": [8, 8]}}, "held_out_log_lik": 1.0}
+        record = {"belief_env": belief_world.name, "config": {"dynamics": {"hidden": [8, 8]}}, "transitions": cfg.transitions}
+        record.update(held_out_log_lik=1.25, held_out_below_floor=0.0, true_env=true_world.name)
+        record.update(true_log_lik=-40.0, true_below_floor=0.125)  # the fit's record (learned_belief.fit_learned_belief)
         return "the fitted model", record
 
     def fake_error(world, cfg, fn, params):
@@ -145,6 +147,12 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
     assert [c["met"] for c in conds] == [True, False, False, None, True]
     assert "| lunar | 1 ✓, 2 ✗, 3 ✗, 4 –, 5 ✓ (learned belief; no design check) |" in printed
     assert "no design check" in printed and "| lunar | PrefBias (30 queries) | −150.0 ± 0.0 |" in printed
+    # the person's learned belief beside the figure: its held-out fit, and how the true env's steps score under it
+    assert (
+        f"- lunar: the person's believed dynamics (a Gaussian model fitted to 600 transitions of {vacuum}): "
+        "held-out log-likelihood 1.2 a transition (0.0% below the floor on log T_H); on the true env's "
+        "transitions -40.0 (12.5% below)"
+    ) in printed
     for name in ("curves_lunar.png", "trajectories_lunar.png", "rollouts/lunar__sac.gif", "table.md"):
         assert (out / name).stat().st_size > 0, name
     record = json.loads((out / "jobs" / "lunar__prefbias-q30.json").read_text())

@@ -90,6 +90,25 @@ def reference_record(world, name: str, cfg, belief: dict | None) -> dict:
     }
 
 
+def belief_line(ref: dict | None) -> str | None:
+    """The person's learned believed dynamics as the reference job measured them, in one line: the
+    mean log-likelihood per held-out transition of the belief env, the share of those below the
+    preference teacher's floor on log T_H, and the same on the true env's transitions (what the
+    person finds surprising in what actually happens). None for a domain whose belief is exact (MJX).
+    """
+    b = (ref or {}).get("belief_model")
+    if not b:
+        return None
+    line = (
+        f"the person's believed dynamics (a Gaussian model fitted to {b['transitions']} transitions of "
+        f"{b['belief_env']}): held-out log-likelihood {b['held_out_log_lik']:.1f} a transition "
+        f"({100 * b['held_out_below_floor']:.1f}% below the floor on log T_H)"
+    )
+    if b.get("true_log_lik") is not None:
+        line += f"; on the true env's transitions {b['true_log_lik']:.1f} ({100 * b['true_below_floor']:.1f}% below)"
+    return line
+
+
 def conditions(world, cfg, ended_early: float, belief: dict | None) -> list[dict]:
     """The conditions of docs/experiments/identifiability.md for this domain and person, as measured.
 

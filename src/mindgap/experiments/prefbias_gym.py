@@ -34,7 +34,8 @@ Outputs in the run folder: ``curves.csv``, ``results.csv``, ``curves_DOMAIN.png`
 18–20: mean ± std over seeds of the greedy return under the env's own reward),
 ``trajectories_DOMAIN.png`` (the first two observations of greedy episodes: the lander's x, y;
 the walkers' x and height), ``rollouts/DOMAIN__JOB.gif`` (one greedy episode of seed 0's
-final policy, drawn by the env), ``summary.json`` (rows, conditions, claims) and ``table.md``.
+final policy, drawn by the env), ``summary.json`` (rows, conditions, claims) and ``table.md``;
+beside each figure, the person's learned belief's held-out fit (:func:`~.gym_measures.belief_line`).
 """
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, with_
 from . import prefbias_common as pc
 from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
-from .gym_measures import reference_record, reward_error
+from .gym_measures import belief_line, reference_record, reward_error
 
 # ---------------------------------------------------------------------------------------
 # the domains
@@ -446,7 +447,7 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
     refs, oracles, learned = pc.split(records)
     levels = {r["world"]: r for r in records.values() if r["method"] == "sac-level"}
     learned = [r for r in learned if r["method"] != "sac-level"]
-    rows, curves, claims, table, cond_table = [], [], [], [], []
+    rows, curves, claims, table, cond_table, beliefs = [], [], [], [], [], []
     for name in cfg.worlds:
         recs = sorted([r for r in [*learned, *oracles.values()] if r["world"] == name], key=_order)
         ref = refs.get(name)
@@ -474,9 +475,11 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
             )
         if ref is not None:
             cond_table.append([name, _design_verdict(name, ref)])
+        belief = belief_line(ref)
+        beliefs += [f"- {name}: {belief}"] * (belief is not None)
         claims += domain_claims(name, mine, level_row=mine[-1] if level is not None else None)
         if recs:
-            _figures(out, name, recs + [level] * (level is not None))
+            _figures(out, name, recs + [level] * (level is not None), note=belief or "")
     write_csv(out / "results.csv", rows, ["method", "world", "queries", "seeds", "return_mean", "return_std"])
     write_csv(out / "curves.csv", curves, ["method", "world", "queries", "seed", "step", "return"])
     header = ["domain", "learner", "final return", "normalised", "reward error"]
@@ -490,6 +493,7 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
         "conditions of docs/experiments/identifiability.md as measured (✓ met, ✗ not, – not measured: "
         "1 finite β, 2 r_H of (s, a) only, 3 equal segments, 4 more than one true outcome, 5 belief in "
         "f_φ's family):\n\n" + pc.markdown(["domain", "conditions"], cond_table)
+        + ("\nLearned beliefs (the reference job's fit, held out from it):\n\n" + "\n".join(beliefs) + "\n") * bool(beliefs)
     )
     conds = {name: refs[name]["conditions"] for name in cfg.worlds if name in refs}
     summary = {
@@ -585,11 +589,12 @@ def _last_step(rec: dict) -> int:
     return max((int(c[1]) for c in rec["curve"]), default=0)
 
 
-def _figures(out: Path, name: str, recs: list[dict]) -> None:
+def _figures(out: Path, name: str, recs: list[dict], note: str = "") -> None:
     save_learning_curves(
         out / f"curves_{name}.png",
         {r["label"]: r["curve"] for r in recs},
         title=f"{name}: {domain(name).title} — return under the env's reward (mean ± std over seeds)",
+        note=note,
     )
     shown = [max((r for r in recs if r["method"] == "prefbias"), key=lambda r: r["tags"]["queries"], default=None)]
     shown = [r for r in shown if r] + [r for r in recs if r["method"] in ("pebble", "sac")]

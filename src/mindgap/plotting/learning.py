@@ -26,11 +26,14 @@ def curve_stats(rows) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 def save_learning_curves(
-    path: str | Path, runs: Mapping[str, list], title: str = "", reference: float | None = None
+    path: str | Path, runs: Mapping[str, list], title: str = "", reference: float | None = None, note: str = ""
 ) -> Path:
-    """Mean ± std over seeds of each run's return; ``reference`` (e.g. the planning check's) dashed."""
+    """Mean ± std over seeds of each run's return; ``reference`` (e.g. the planning check's) dashed;
+    ``note`` a caption under the axes (what the figure is read beside)."""
     path = Path(path)
-    fig, ax = plt.subplots(figsize=(5.2, 3.4))
+    caption = textwrap.fill(note, 95) if note else ""
+    lines = caption.count("\n") + 1 if caption else 0
+    fig, ax = plt.subplots(figsize=(5.2, 3.4 + 0.14 * lines))
     for i, (label, rows) in enumerate(runs.items()):
         steps, mean, std, _ = curve_stats(rows)
         col = METHOD_COLOURS[i % len(METHOD_COLOURS)]
@@ -44,7 +47,9 @@ def save_learning_curves(
         ax.set_title(textwrap.fill(title, 75), fontsize=9)  # a long title on two lines, not cut at the edges
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
+    if caption:
+        fig.text(0.02, 0.01, caption, fontsize=6, va="bottom", ha="left")
+    fig.tight_layout(rect=(0, 0.14 * lines / (3.4 + 0.14 * lines) + 0.01 * bool(lines), 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part" + path.suffix)
     fig.savefig(tmp, dpi=150)
