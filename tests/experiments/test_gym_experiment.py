@@ -147,6 +147,11 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
     assert [c["met"] for c in conds] == [True, False, False, None, True]
     assert "| lunar | 1 ✓, 2 ✗, 3 ✗, 4 –, 5 ✓ (learned belief; no design check) |" in printed
     assert "no design check" in printed and "| lunar | PrefBias (30 queries) | −150.0 ± 0.0 |" in printed
+    # what each finished job cost, from its record, and the total so far
+    jobs = {p.stem.replace("__", "/"): json.loads(p.read_text()) for p in (out / "jobs").glob("*.json")}
+    assert [c["job"] for c in summary["costs"]] == sorted(jobs)
+    assert all(c["seconds"] == pytest.approx(jobs[c["job"]]["seconds"]) for c in summary["costs"])
+    assert f"{len(jobs)} jobs finished: " in printed
     # the person's learned belief beside the figure: its held-out fit, and how the true env's steps score under it
     assert (
         f"- lunar: the person's believed dynamics (a Gaussian model fitted to 600 transitions of {vacuum}): "

@@ -109,6 +109,27 @@ def belief_line(ref: dict | None) -> str | None:
     return line
 
 
+def job_costs(records: dict) -> tuple[list[dict], str]:
+    """What each finished job of the run cost, from its record: the seconds its process ran (summed
+    over its seed slices: one core each, so core-seconds) and their CPU time where every slice kept
+    it (slices stopped for a while ran longer than they computed). Rows, and a markdown table with
+    the total so far."""
+    rows = [
+        {"job": key, "seeds": r.get("seeds"), "seconds": float(r.get("seconds", 0.0)), "cpu_seconds": r.get("cpu_seconds")}
+        for key, r in sorted(records.items())
+    ]
+    cell = lambda s: "–" if s is None else f"{s / 3600:.2f}"  # noqa: E731
+    lines = [f"| {r['job']} | {r['seeds'] or '–'} | {cell(r['seconds'])} | {cell(r['cpu_seconds'])} |" for r in rows]
+    spent = sum(r["cpu_seconds"] if r["cpu_seconds"] is not None else r["seconds"] for r in rows)
+    md = (
+        "| job | seeds | process hours | CPU hours |\n|---|---|---|---|\n"
+        + "".join(line + "\n" for line in lines)
+        + f"\n{len(rows)} jobs finished: {spent / 3600:.1f} core-hours (CPU time where every slice kept it, "
+        "else the processes' running time)\n"
+    )
+    return rows, md
+
+
 def conditions(world, cfg, ended_early: float, belief: dict | None) -> list[dict]:
     """The conditions of docs/experiments/identifiability.md for this domain and person, as measured.
 

@@ -59,7 +59,7 @@ from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, with_
 from . import prefbias_common as pc
 from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
-from .gym_measures import belief_line, reference_record, reward_error
+from .gym_measures import belief_line, job_costs, reference_record, reward_error
 
 # ---------------------------------------------------------------------------------------
 # the domains
@@ -495,6 +495,8 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
         "f_φ's family):\n\n" + pc.markdown(["domain", "conditions"], cond_table)
         + ("\nLearned beliefs (the reference job's fit, held out from it):\n\n" + "\n".join(beliefs) + "\n") * bool(beliefs)
     )
+    costs, cost_md = job_costs(records)
+    table_md += "\nWhat the finished jobs cost (one core a process):\n\n" + cost_md
     conds = {name: refs[name]["conditions"] for name in cfg.worlds if name in refs}
     summary = {
         "experiment": "gym",
@@ -502,6 +504,7 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
         "results": rows,
         "conditions": conds,
         "claims": claims,
+        "costs": costs,
         "table_md": table_md,
     }
     pc.write_summary(out, summary)
