@@ -72,9 +72,12 @@ def stand_ins(monkeypatch):
 
     def fake_fit(belief_world, cfg, *, true_world=None, **kw):
         calls.append(("fit", belief_world.name, cfg.transitions, ()))
-        record = {"belief_env": belief_world.name, "config": {"dynamics": {"hidden": [8, 8]}}, "transitions": cfg.transitions}
+        # the fields of learned_belief.fit_learned_belief's record
+        record = dict(
+            belief_env=belief_world.name, config={"dynamics": {"hidden": [8, 8]}}, transitions=cfg.transitions
+        )
         record.update(held_out_log_lik=1.25, held_out_below_floor=0.0, true_env=true_world.name)
-        record.update(true_log_lik=-40.0, true_below_floor=0.125)  # the fit's record (learned_belief.fit_learned_belief)
+        record.update(true_log_lik=-40.0, true_below_floor=0.125)
         return "the fitted model", record
 
     def fake_error(world, cfg, fn, params):

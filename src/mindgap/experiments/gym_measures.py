@@ -115,10 +115,18 @@ def job_costs(records: dict) -> tuple[list[dict], str]:
     it (slices stopped for a while ran longer than they computed). Rows, and a markdown table with
     the total so far."""
     rows = [
-        {"job": key, "seeds": r.get("seeds"), "seconds": float(r.get("seconds", 0.0)), "cpu_seconds": r.get("cpu_seconds")}
+        {
+            "job": key,
+            "seeds": r.get("seeds"),
+            "seconds": float(r.get("seconds", 0.0)),
+            "cpu_seconds": r.get("cpu_seconds"),
+        }
         for key, r in sorted(records.items())
     ]
-    cell = lambda s: "–" if s is None else f"{s / 3600:.2f}"  # noqa: E731
+
+    def cell(seconds):
+        return "–" if seconds is None else f"{seconds / 3600:.2f}"
+
     lines = [f"| {r['job']} | {r['seeds'] or '–'} | {cell(r['seconds'])} | {cell(r['cpu_seconds'])} |" for r in rows]
     spent = sum(r["cpu_seconds"] if r["cpu_seconds"] is not None else r["seconds"] for r in rows)
     md = (

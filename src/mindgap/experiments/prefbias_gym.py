@@ -493,8 +493,9 @@ def write_outputs(cfg: GymConfig, out: Path, records: dict) -> dict:
         "conditions of docs/experiments/identifiability.md as measured (✓ met, ✗ not, – not measured: "
         "1 finite β, 2 r_H of (s, a) only, 3 equal segments, 4 more than one true outcome, 5 belief in "
         "f_φ's family):\n\n" + pc.markdown(["domain", "conditions"], cond_table)
-        + ("\nLearned beliefs (the reference job's fit, held out from it):\n\n" + "\n".join(beliefs) + "\n") * bool(beliefs)
     )
+    if beliefs:
+        table_md += "\nLearned beliefs (the reference job's fit, held out from it):\n\n" + "\n".join(beliefs) + "\n"
     costs, cost_md = job_costs(records)
     table_md += "\nWhat the finished jobs cost (one core a process):\n\n" + cost_md
     conds = {name: refs[name]["conditions"] for name in cfg.worlds if name in refs}
