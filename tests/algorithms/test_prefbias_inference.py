@@ -47,8 +47,8 @@ def _np_mlp(params, x):
     return x
 
 
-def _np_score(w, phi, norm, obs, act, nxt, mask, min_std):
-    """Σ_t [r(s_t, a_t) + log N(s_{t+1}; mean, std)] over unmasked steps, in plain NumPy and SciPy."""
+def _np_score(w, phi, norm, obs, act, nxt, mask, min_std, floor=-np.inf):
+    """Σ_t [r(s_t, a_t) + max(log N(s_{t+1}; mean, std), floor)] over unmasked steps, in plain NumPy and SciPy."""
     obs, act, nxt = (np.asarray(x, np.float64) for x in (obs, act, nxt))
     in_mean, in_std, out_mean, out_std = (np.asarray(x, np.float64) for x in norm)
     x = np.concatenate([obs, act], -1)
@@ -56,7 +56,7 @@ def _np_score(w, phi, norm, obs, act, nxt, mask, min_std):
     raw = _np_mlp(phi, (x - in_mean) / in_std)
     mean = obs + out_mean + out_std * raw[:, :2]
     std = out_std * (min_std + np.log1p(np.exp(raw[:, 2:])))
-    log_f = stats.norm.logpdf(nxt, mean, std).sum(-1)
+    log_f = np.maximum(stats.norm.logpdf(nxt, mean, std).sum(-1), floor)
     return float(np.sum((r + log_f)[np.asarray(mask)]))
 
 
@@ -92,6 +92,33 @@ def test_preference_likelihood_matches_hand_computation(key):
     for y in (1.0, 0.0, 0.5):
         expect = -(y * np.log(p) + (1 - y) * np.log(1 - p))
         np.testing.assert_allclose(float(bt_cross_entropy(jnp.asarray(s_a - s_b), y)), expect, rtol=1e-4)
+
+
+def test_a_floor_on_log_f_scores_each_step_as_the_person_does(key):
+    """``log_f_floor``: S = Σ_t r_w + max(log f_φ, floor), the form of the simulated person's score."""
+    w, phi, norm, seg_a, _ = _tiny_problem(key)
+    args = (w, phi, norm, seg_a.obs[0], seg_a.act[0], seg_a.next_obs[0], seg_a.mask[0], 0.02)
+    plain = PrefBiasConfig(reward_hidden=(5,), dynamics=DynamicsConfig(hidden=(6,), min_std=0.02), **PLAIN)
+    per_step = [_np_score(*args[:3], *(x[t : t + 1] for x in args[3:7]), 0.02) for t in range(2)]
+    r = [_np_score(*args[:3], *(x[t : t + 1] for x in args[3:7]), 0.02, floor=1e6) - 1e6 for t in range(2)]
+    log_f = np.subtract(per_step, r)
+    floor = float(np.mean(log_f))  # between the two steps' log densities: it lifts the lower one only
+    assert min(log_f) < floor < max(log_f)
+    for f in (floor, float(max(log_f)) + 1.0):
+        cfg = dataclasses.replace(plain, log_f_floor=f)
+        got = float(scores_fixed(w, phi, norm, seg_a, cfg)[0])
+        np.testing.assert_allclose(got, _np_score(*args, floor=f), rtol=1e-4)
+        np.testing.assert_allclose(got, sum(r) + float(np.sum(np.maximum(log_f, f))), rtol=1e-4)
+    assert float(scores_fixed(w, phi, norm, seg_a, plain)[0]) == pytest.approx(sum(per_step), rel=1e-4)
+    with pytest.raises(ValueError, match="log_f_floor must be a finite number or None"):
+        dataclasses.replace(plain, log_f_floor=float("-inf")).check()
+    # recorded in a run's config only when set, so run folders from before the option still resume
+    from mindgap.algorithms.prefbias import prefbias_config
+
+    fast = prefbias_config("fast")
+    assert "log_f_floor" not in fast.as_dict()["prefbias"]
+    floored = dataclasses.replace(fast, prefbias=dataclasses.replace(fast.prefbias, log_f_floor=-20.0))
+    assert floored.as_dict()["prefbias"]["log_f_floor"] == -20.0
 
 
 def test_stay_head_scores_a_stay_by_its_probability(key):

@@ -71,7 +71,8 @@ class PrefBiasLoopConfig(Schedule):
     def as_dict(self) -> dict:
         """The run record's config; ``prefbias.absorbing``, ``prefbias.stay_head`` and ``prefbias.noise_local``
         (with its prior) only when on, and
-        ``prefbias.absorbing_state`` only when not the default, so run folders from before them still resume."""
+        ``prefbias.absorbing_state`` only when not the default, ``prefbias.log_f_floor`` only when set,
+        so run folders from before them still resume."""
         d = super().as_dict()
         for name in ("absorbing", "stay_head"):
             if not getattr(self.prefbias, name):
@@ -80,6 +81,8 @@ class PrefBiasLoopConfig(Schedule):
             del d["prefbias"]["noise_local"], d["prefbias"]["noise_prior_std"]
         if not self.prefbias.absorbing or self.prefbias.absorbing_state == "terminal":
             del d["prefbias"]["absorbing_state"]
+        if self.prefbias.log_f_floor is None:  # recorded only when set, so run folders from before it still resume
+            del d["prefbias"]["log_f_floor"]
         return d
 
     def check(self) -> None:

@@ -53,6 +53,7 @@ inside one ``lax.scan``; it is jittable with the config static and vmaps over se
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import NamedTuple
 
 import jax
@@ -160,6 +161,13 @@ class PrefBiasConfig:
     answers and every later fit starts there: on nav1 the loop's ten fits left the ice's P(not moving) at
     0.73 (held-out NLL 0.460), against 0.89 (0.277) for one fit on all 800 answers, which 300 rounds from
     the priors reach (``mindgap design recovery nav1 --rounds 10``; docs/experiments/identifiability.md)."""
+    log_f_floor: float | None = None
+    """A floor on f_φ's log density in the segment score, r_w + max(log f_φ, floor): the form of the
+    simulated person's own score, r_H + max(log T_H, ``TeacherConfig.log_t_floor``), so that f_φ cannot
+    take more of an answer than the person's belief gave it. None (the default): no floor, Eq. 3.5 as
+    written; the dissertation floors neither. On the lander, the unfloored f_φ takes thousands of nats
+    from high segments the person scored at the floor, and r_w, balancing the pairs, pays height
+    (docs/experiments/gym.md, "The runs so far")."""
 
     def check(self) -> None:
         if self.absorbing_state not in ABSORBING_STATES:
@@ -175,6 +183,8 @@ class PrefBiasConfig:
             raise ValueError(f"stay_prior_std must be positive or None, got {self.stay_prior_std}")
         if self.kl_scale < 0 or self.mc_samples < 1 or self.batch_size < 1 or self.updates < 1:
             raise ValueError("kl_scale must be ≥ 0; mc_samples, batch_size and updates at least 1")
+        if self.log_f_floor is not None and not math.isfinite(self.log_f_floor):
+            raise ValueError(f"log_f_floor must be a finite number or None, got {self.log_f_floor}")
         if self.holdout_every < 0 or self.holdout_every == 1:
             raise ValueError(f"holdout_every must be 0 (none) or at least 2, got {self.holdout_every}")
         if self.holdout_every and (self.check_every < 1 or self.updates % self.check_every):
@@ -285,6 +295,8 @@ def scores_fixed(w: Params, phi: Params, norm: Norm, seg: Segments, cfg: PrefBia
     ``log_unit``: the state's (:class:`PrefBiasState`), so that f_φ scores in the world's units.
     """
     lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std, log_unit)
+    if cfg.log_f_floor is not None:  # the person's form of the score (PrefBiasConfig.log_f_floor)
+        lf = jnp.maximum(lf, cfg.log_f_floor)
     s = segment_scores(reward_value(w, seg.obs, seg.act), lf, seg.mask)
     return s + absorbed_scores(absorbing_value(w, terminal_obs(seg)), seg)
 
