@@ -4,7 +4,7 @@ A modelling choice of PrefBias (a :class:`~mindgap.algorithms.prefbias_inference
 field, e.g. ``log_f_floor=-20``: f_φ's log density floored as the simulated person floors log T_H)
 is held against the full run as committed: the same job of the full preset
 (:mod:`~mindgap.experiments.prefbias_gym`), the same seed, the same person and schedule, only the
-fields given changed, trained in its own folder (``--out``; it checkpoints and resumes). It prints
+fields given changed, trained in its own folder (``--out/KEY``; it checkpoints and resumes). It prints
 the final greedy return and the greedy episodes' top height (the lander's y: the learned reward
 paying height shows as a climb; docs/experiments/gym.md, "The runs so far") of both, and keeps the
 variant's record in ``--out/KEY__seed-I.json``. One process; about a slice's time (15–18 minutes
@@ -76,7 +76,7 @@ def main() -> None:
     except (ValueError, TypeError) as e:
         sys.exit(f"gym_prefbias_variant: {e}")
     variant = job._replace(cfg=dataclasses.replace(job.cfg, prefbias=pb))
-    folder = RunFolder(args.out, variant.cfg)
+    folder = RunFolder(args.out / args.job.replace("/", "__"), variant.cfg)  # a folder a job: its config
     rec = gym.compute_job(folder, variant, cfg.seeds, cfg=cfg, fresh=False, progress=True, seed_ids=(args.seed,))
     rec = {**rec, "changed": changed, "job": args.job, "seed": args.seed}
     path = args.out / f"{args.job.replace('/', '__')}__seed-{args.seed}.json"
