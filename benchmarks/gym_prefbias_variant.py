@@ -16,7 +16,6 @@ on one core of the 2-core machine for the full preset's 300,000 steps).
 from __future__ import annotations
 
 import argparse
-import ast
 import dataclasses
 import json
 import sys
@@ -25,24 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from mindgap._io import atomic_write
-from mindgap.algorithms.prefbias_inference import PrefBiasConfig
+from mindgap.commands.design import prefbias_overrides
 from mindgap.experiments import prefbias_gym as gym
 from mindgap.experiments._runfolder import RunFolder
-
-
-def _fields(items: list[str]) -> dict:
-    """``FIELD=VALUE`` items (VALUE a Python literal) as PrefBiasConfig fields."""
-    names = {f.name for f in dataclasses.fields(PrefBiasConfig)}
-    out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or name not in names:
-            raise ValueError(f"--set takes FIELD=VALUE with a PrefBiasConfig field, got {item!r}")
-        try:
-            out[name] = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            raise ValueError(f"--set {name}: {value!r} is not a Python literal") from None
-    return out
 
 
 def _summary(rec: dict) -> dict:
@@ -68,7 +52,7 @@ def main() -> None:
             raise ValueError(f"--job must be a PrefBias job of the full preset ({keys}), got {args.job!r}")
         if not 0 <= args.seed < cfg.seeds:
             raise ValueError(f"--seed must lie in 0 … {cfg.seeds - 1}, got {args.seed}")
-        changed = _fields(args.set)
+        changed = prefbias_overrides(args.set)
         if not changed:
             raise ValueError("give at least one --set FIELD=VALUE: with none this is the committed job")
         pb = dataclasses.replace(job.cfg.prefbias, **changed)

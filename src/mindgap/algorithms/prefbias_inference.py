@@ -183,7 +183,8 @@ class PrefBiasConfig:
             raise ValueError(f"stay_prior_std must be positive or None, got {self.stay_prior_std}")
         if self.kl_scale < 0 or self.mc_samples < 1 or self.batch_size < 1 or self.updates < 1:
             raise ValueError("kl_scale must be ≥ 0; mc_samples, batch_size and updates at least 1")
-        if self.log_f_floor is not None and not math.isfinite(self.log_f_floor):
+        floor = self.log_f_floor
+        if floor is not None and (not isinstance(floor, (int, float)) or not math.isfinite(floor)):
             raise ValueError(f"log_f_floor must be a finite number or None, got {self.log_f_floor}")
         if self.holdout_every < 0 or self.holdout_every == 1:
             raise ValueError(f"holdout_every must be 0 (none) or at least 2, got {self.holdout_every}")

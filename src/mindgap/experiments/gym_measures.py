@@ -15,6 +15,7 @@ import numpy as np
 from ..envs.gym_world import GymWorld
 from ..teachers.learned_belief import collect
 from . import world_measures as wm
+from .prefbias_common import markdown
 
 
 def random_host(world: GymWorld, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -127,11 +128,10 @@ def job_costs(records: dict) -> tuple[list[dict], str]:
     def cell(seconds):
         return "–" if seconds is None else f"{seconds / 3600:.2f}"
 
-    lines = [f"| {r['job']} | {r['seeds'] or '–'} | {cell(r['seconds'])} | {cell(r['cpu_seconds'])} |" for r in rows]
+    table = [[r["job"], str(r["seeds"] or "–"), cell(r["seconds"]), cell(r["cpu_seconds"])] for r in rows]
     spent = sum(r["cpu_seconds"] if r["cpu_seconds"] is not None else r["seconds"] for r in rows)
     md = (
-        "| job | seeds | process hours | CPU hours |\n|---|---|---|---|\n"
-        + "".join(line + "\n" for line in lines)
+        markdown(["job", "seeds", "process hours", "CPU hours"], table)
         + f"\n{len(rows)} jobs finished: {spent / 3600:.1f} core-hours (CPU time where every slice kept it, "
         "else the processes' running time)\n"
     )
