@@ -37,6 +37,9 @@ def main() -> None:
     p.add_argument("--steps", type=int, default=11_000)
     p.add_argument("--full-steps", type=int, default=300_000)
     p.add_argument("--seeds", type=int, default=5, help="the full preset's seeds, for the extrapolation")
+    p.add_argument(
+        "--methods", nargs="+", default=None, help="learner jobs to time (default all; the reference always runs)"
+    )
     p.add_argument("--job-seeds", type=int, default=1, help="seeds trained together in the short run")
     args = p.parse_args()
     if not 1 <= args.job_seeds <= args.seeds:
@@ -62,6 +65,8 @@ def main() -> None:
         )
         with tempfile.TemporaryDirectory() as out:
             for job in gym.jobs(cfg):
+                if args.methods and job.method != "reference" and job.method not in args.methods:
+                    continue
                 t0 = time.perf_counter()
                 gym.run(cfg, Path(out), fresh=False, progress=False, assemble_only=False, only=job.key)
                 seconds = time.perf_counter() - t0
