@@ -23,7 +23,7 @@ Per domain, PrefBias learns from 200, 400 and 800 answers, PEBBLE from the same 
 800, SAC on the env's own reward is the oracle (every learner is one job, its seeds
 vmapped or stepped in lockstep). A ``sac-level`` job per host domain trains SAC on the
 *belief* env (the lander in a vacuum, the reliable hopper and cheetah) for
-:data:`LEVELS`' budget, to compare mindgap's SAC with a published level.
+:data:`~.gym_claims.LEVELS`' budget, to compare mindgap's SAC with a published level.
 
 There is no design check for these worlds: :mod:`~mindgap.design.design_check` plans on a
 terrain map. The reference job measures instead which conditions of
@@ -59,6 +59,7 @@ from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, with_
 from . import prefbias_common as pc
 from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
+from .gym_claims import LEVELS, NO_X, domain_claims
 from .gym_measures import belief_line, job_costs, reference_record, reward_error
 
 # ---------------------------------------------------------------------------------------
@@ -79,7 +80,6 @@ class Domain(NamedTuple):
     title: str
 
 
-_NO_X = "exclude_current_positions_from_observation=False"
 DOMAINS = {
     "lunar": Domain(
         "gym:mindgap/SolarWindLander-v0",
@@ -90,14 +90,14 @@ DOMAINS = {
     ),
     "hopper": Domain(
         "gym:mindgap/NoisyHopper-v0",
-        f"gym:Hopper-v5,{_NO_X}",
+        f"gym:Hopper-v5,{NO_X}",
         "host",
         "gym:mindgap/NoisyHopper-v0",
         "hopper with hidden noise (Fig. 19)",
     ),
     "cheetah": Domain(
         "gym:mindgap/NoisyHalfCheetah-v0",
-        f"gym:HalfCheetah-v5,{_NO_X}",
+        f"gym:HalfCheetah-v5,{NO_X}",
         "host",
         "gym:mindgap/NoisyHalfCheetah-v0",
         "half-cheetah with hidden noise (Fig. 20)",
@@ -108,43 +108,6 @@ DOMAINS = {
     ),
 }
 """Domain name → definition. The presets run ``lunar``, ``hopper`` and ``cheetah`` on the host loop."""
-
-
-class Level(NamedTuple):
-    """A published level of SAC that our SAC on the belief env is compared with (docs/experiments/gym.md)."""
-
-    env: str
-    """The env the level was measured on."""
-    level: float
-    """The return SAC must reach (mean over seeds of the final greedy return)."""
-    steps: int
-    """The source's training budget (our level job trains as long)."""
-    source: str
-
-
-LEVELS = {
-    "lunar": Level(
-        "gym:LunarLander-v3,continuous=True",
-        200.0,
-        500_000,
-        "the 'solved' score of the Gym documentation (dissertation §3.4.2.2); the SB3 RL Zoo's SAC "
-        "reaches 260.4 ± 65.5 on LunarLanderContinuous-v2 at 500k steps",
-    ),
-    "hopper": Level(
-        f"gym:Hopper-v5,{_NO_X}",
-        2325.5 - 1129.7,
-        1_000_000,
-        "the SB3 RL Zoo's SAC on Hopper-v3 at 1M steps: 2325.5 ± 1129.7 (mean ± std over evaluation "
-        "episodes); the level is the mean minus one std",
-    ),
-    "cheetah": Level(
-        f"gym:HalfCheetah-v5,{_NO_X}",
-        9535.5 - 100.5,
-        1_000_000,
-        "the SB3 RL Zoo's SAC on HalfCheetah-v3 at 1M steps: 9535.5 ± 100.5; the level is the mean minus one std",
-    ),
-}
-"""Per host domain, the published SAC level (docs/experiments/gym.md cites the tables)."""
 
 
 def domain(name: str, who: str = "gym") -> Domain:
@@ -257,11 +220,11 @@ class GymConfig:
     """More preference learners by registered name, each beside PEBBLE on every domain with PEBBLE's
     budget and schedule (:func:`~.prefbias_common.method_job`). Empty in the dissertation's presets."""
     levels: bool = False
-    """Also train SAC on each host domain's belief env for :data:`LEVELS`' budget (``sac-level``,
+    """Also train SAC on each host domain's belief env for :data:`~.gym_claims.LEVELS`' budget (``sac-level``,
     ``--levels``): opt-in, as the level runs are not part of Figs. 18–20 and cost about a day on a
     2-core CPU (docs/experiments/gym.md, "The budget")."""
     level_steps: int | None = None
-    """The ``sac-level`` jobs' steps (None: the source's budget, :attr:`Level.steps`)."""
+    """The ``sac-level`` jobs' steps (None: the source's budget, :attr:`~.gym_claims.Level.steps`)."""
     level_sac: SACConfig | None = field(default_factory=lambda: published_sac())
     """The ``sac-level`` jobs' SAC (None: the learners'): the published levels' 256 × 256 with an update
     every step in the full preset, where the learners run a cheaper SAC."""
@@ -517,75 +480,6 @@ def _design_verdict(name: str, ref: dict) -> str:
     parts = [f"{i + 1} {marks[c['met']]}" for i, c in enumerate(ref["conditions"])]
     kind = "learned belief" if domain(name).runtime == "host" else "exact belief (MJX)"
     return f"{', '.join(parts)} ({kind}; no design check)"
-
-
-def _se(a: dict, b: dict) -> float:
-    """Standard error of the difference of two rows' mean final returns (seeds independent); NaN with one seed."""
-    if min(a["seeds"], b["seeds"]) < 2:
-        return float("nan")
-    return float(np.sqrt(a["return_std"] ** 2 / max(a["seeds"], 1) + b["return_std"] ** 2 / max(b["seeds"], 1)))
-
-
-_ABOVE_PEBBLE = {
-    "hopper": "PrefBias achieves much better performance than PEBBLE",
-    "cheetah": "PrefBias better matches SAC's performance than PEBBLE",
-}
-"""§3.4.3's words (l. 743) on the hopper and the cheetah, both checked as PrefBias above PEBBLE."""
-
-
-def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) -> list[dict]:
-    """The dissertation's claims on this domain (§3.4.3, l. 743, on Figs. 18–20) and the project's
-    check of SAC's level, as measured (sources by id: :data:`~.claim_sources.SOURCES`).
-
-    * lunar: "both PrefBias and PEBBLE fail to match the SAC performance" — every PbRL learner's
-      mean final return lies below SAC's by more than two standard errors of the difference;
-    * hopper ("PrefBias achieves much better performance"), cheetah ("PrefBias can better match
-      the performance of SAC, compared to PEBBLE"): PrefBias (the largest budget) above PEBBLE by
-      more than two standard errors of the difference — on the cheetah, where both stay below
-      SAC, above PEBBLE is closer to SAC;
-    * SAC's level (:data:`LEVELS`, the project's check): SAC on the belief env reaches the published level.
-
-    With one seed there is no standard error, and the comparisons are not met.
-    """
-    base = name.removesuffix("-mjx")
-    sac = next((r for r in rows if r["method"] == "sac"), None)
-    pbrl_rows = [r for r in rows if r["method"] in ("prefbias", "pebble")]
-    pb = [r for r in pbrl_rows if r["method"] == "prefbias"]
-    peb = [r for r in pbrl_rows if r["method"] == "pebble"]
-    out = []
-    if base == "lunar" and sac is not None and pbrl_rows:
-        gaps = {r["label"]: (sac["return_mean"] - r["return_mean"], 2 * _se(sac, r)) for r in pbrl_rows}
-        out.append(
-            pc.claim(
-                "gym/lunar-below-sac",
-                f"{name}: both PrefBias and PEBBLE fail to match SAC (each below it by more than 2 standard errors)",
-                all(g > z for g, z in gaps.values()),
-                "; ".join(f"SAC − {k} = {g:.1f} (2 SE {z:.1f})" for k, (g, z) in gaps.items()),
-            )
-        )
-    if base in ("hopper", "cheetah") and pb and peb:
-        top, p = max(pb, key=lambda r: r["queries"]), peb[0]
-        gap, z = top["return_mean"] - p["return_mean"], 2 * _se(top, p)
-        out.append(
-            pc.claim(
-                f"gym/{base}-above-pebble",
-                f"{name}: {_ABOVE_PEBBLE[base]}: {top['label']} above {p['label']} (by more than 2 standard errors)",
-                gap > z,
-                f"{top['return_mean']:.1f} vs {p['return_mean']:.1f} (difference {gap:+.1f}, 2 SE {z:.1f})",
-            )
-        )
-    if level_row is not None and base in LEVELS:
-        lv = LEVELS[base]
-        out.append(
-            pc.claim(
-                "gym/sac-level",
-                f"{name}: SAC on {lv.env} reaches {lv.level:.0f} ({lv.source.split(';')[0]})",
-                level_row["return_mean"] >= lv.level,
-                f"{pc.fmt(level_row['return_mean'], level_row['return_std'])} after "
-                f"{level_row.get('steps', 0)} steps (the source's budget: {lv.steps})",
-            )
-        )
-    return out
 
 
 def _last_step(rec: dict) -> int:
