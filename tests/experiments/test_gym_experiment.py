@@ -189,11 +189,14 @@ def test_assemble_reads_a_run_whose_other_domains_have_no_job_yet(stand_ins, tmp
 
 
 def test_the_conditions_are_measured_per_domain():
-    """The lander's reward shapes by the next state and its random episodes end early; the cheetah's runs to the horizon."""
+    """The lander's reward shapes by the next state and its random episodes end early, as the hopper's do;
+    the cheetah's and ``hopper-fixed``'s run to the horizon (condition 3 met)."""
     cfg = pg.preset("fast")
     for spec, early in (
         ("gym:mindgap/SolarWindLander-v0,max_episode_steps=200", True),
         ("gym:mindgap/NoisyHalfCheetah-v0,max_episode_steps=50", False),
+        (pg._spec(pg.DOMAINS["hopper"].env, 50), True),
+        (pg._spec(pg.DOMAINS["hopper-fixed"].env, 50), False),
     ):
         world = gym_world_from_spec(spec)
         rets, lens = gm.random_host(world, 3, 0)

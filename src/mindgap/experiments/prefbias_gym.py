@@ -80,6 +80,9 @@ class Domain(NamedTuple):
     title: str
 
 
+FIXED = "terminate_when_unhealthy=False"
+"""The spec fragment of ``hopper-fixed``: episodes of fixed length."""
+
 DOMAINS = {
     "lunar": Domain(
         "gym:mindgap/SolarWindLander-v0",
@@ -102,12 +105,27 @@ DOMAINS = {
         "gym:mindgap/NoisyHalfCheetah-v0",
         "half-cheetah with hidden noise (Fig. 20)",
     ),
+    "hopper-fixed": Domain(
+        f"gym:mindgap/NoisyHopper-v0,{FIXED}",
+        f"gym:Hopper-v5,{NO_X}",
+        "host",
+        f"gym:mindgap/NoisyHopper-v0,{FIXED}",
+        "hopper with hidden noise, episodes of fixed length",
+    ),
     "hopper-mjx": Domain("mjx:hopper", "", "mjx", "gym:mindgap/NoisyHopper-v0", "hopper with hidden noise, MJX"),
     "cheetah-mjx": Domain(
         "mjx:cheetah", "", "mjx", "gym:mindgap/NoisyHalfCheetah-v0", "half-cheetah with hidden noise, MJX"
     ),
 }
-"""Domain name → definition. The presets run ``lunar``, ``hopper`` and ``cheetah`` on the host loop."""
+"""Domain name → definition. The presets run ``lunar``, ``hopper`` and ``cheetah`` on the host loop.
+
+``hopper-fixed`` is the noisy hopper whose episodes do not end when it falls (gymnasium's
+``terminate_when_unhealthy=False``: 1,000 steps each, the healthy reward paid only while healthy), so
+that every queried segment has ten real steps — the identifiability condition 3 that the hopper
+fails (docs/experiments/identifiability.md; docs/experiments/gym.md, "The hopper's falls"). Its
+person believes the same dynamics as the hopper's (an episode's end is a rule of the task, not of
+the dynamics), fitted to the same belief env. Not in the presets: ``benchmarks/gym_prefbias_variant.py
+--world hopper-fixed`` runs a job of the full preset on it."""
 
 
 def domain(name: str, who: str = "gym") -> Domain:
