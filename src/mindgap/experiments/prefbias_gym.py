@@ -124,7 +124,7 @@ DOMAINS = {
 that every queried segment has ten real steps — the identifiability condition 3 that the hopper
 fails (docs/experiments/identifiability.md; docs/experiments/gym.md, "The hopper's falls"). Its
 person believes the same dynamics as the hopper's (an episode's end is a rule of the task, not of
-the dynamics), fitted to the same belief env. Not in the presets: ``benchmarks/gym_prefbias_variant.py
+the dynamics), fitted to the same belief env. Not in the presets: ``benchmarks/gym_variant.py
 --world hopper-fixed`` runs a job of the full preset on it."""
 
 
