@@ -50,7 +50,7 @@ def main() -> None:
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="a PrefBiasConfig field")
     p.add_argument("--world", default=None, help="run the job on this domain instead (e.g. hopper-fixed)")
-    p.add_argument("--out", type=Path, default=Path("runs/gym-prefbias-variant"))
+    p.add_argument("--out", type=Path, default=Path("runs/gym-variant"))
     p.add_argument("--committed", type=Path, default=Path("results/gym"), help="the full run to compare with")
     args = p.parse_args()
     try:
