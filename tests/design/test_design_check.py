@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from mindgap.cli import main
+from mindgap.commands.design import prefbias_overrides
 from mindgap.design.design_check import DesignConfig, design_check
 from mindgap.envs.terrain import world_from_dict
 from mindgap.planning.finite_horizon import backward, forward
@@ -127,6 +128,7 @@ def test_the_command_fits_the_belief_by_maximum_likelihood(tmp_path, capsys):
     [
         (["--set", "nonsense=1"], "expected FIELD=VALUE with FIELD one of"),
         (["--set", "belief_prior_std=-1"], "belief_prior_std must be positive"),
+        (["--set", "absorbing=no"], "absorbing is true or false"),
         (["--updates", "30"], "multiple of check_every"),
         (["--rounds", "7"], "multiple of rounds"),
     ],
@@ -137,6 +139,13 @@ def test_the_recovery_command_names_bad_input_in_one_line(tmp_path, capsys, extr
     err = capsys.readouterr().err
     assert msg in err and err.strip().count("\n") == 0
     assert not out.exists()
+
+
+def test_set_reads_a_switch_as_a_boolean():
+    """`absorbing=false` turns the switch off: read as a literal it was the string "false", which is true."""
+    got = prefbias_overrides(["absorbing=false", "stay_head=True", "log_f_floor=-20", "absorbing_state=single"])
+    assert got == {"absorbing": False, "stay_head": True, "log_f_floor": -20, "absorbing_state": "single"}
+    assert got["absorbing"] is False
 
 
 def test_the_oracle_line_says_whether_every_seed_beats_random(tmp_path):

@@ -261,17 +261,22 @@ def prefbias_overrides(items: list[str]) -> dict:
 
     from ..algorithms.prefbias_inference import PrefBiasConfig
 
-    fields = {f.name for f in dataclasses.fields(PrefBiasConfig)}
+    defaults = {f.name: f.default for f in dataclasses.fields(PrefBiasConfig)}
     out = {}
     for item in items:
         name, eq, value = item.partition("=")
-        name = name.strip()
-        if not eq or name not in fields:
-            raise ValueError(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {', '.join(sorted(fields))}")
+        name, value = name.strip(), value.strip()
+        if not eq or name not in defaults:
+            raise ValueError(f"--set {item!r}: expected FIELD=VALUE with FIELD one of {', '.join(sorted(defaults))}")
+        if isinstance(defaults[name], bool):  # a switch: `false` must not become the (true) string "false"
+            if value.lower() not in ("true", "false"):
+                raise ValueError(f"--set {item!r}: {name} is true or false")
+            out[name] = value.lower() == "true"
+            continue
         try:
-            out[name] = ast.literal_eval(value.strip())
+            out[name] = ast.literal_eval(value)
         except (ValueError, SyntaxError):
-            out[name] = value.strip()
+            out[name] = value
     return out
 
 
