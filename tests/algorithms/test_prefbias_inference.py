@@ -287,6 +287,8 @@ def test_priors_and_recentring(key):
         PrefBiasConfig(belief_prior="uniform").check()
     with pytest.raises(ValueError, match="positive"):
         PrefBiasConfig(reward_prior_std=0.0).check()
+    with pytest.raises(ValueError, match="absorbing must be True or False, got 'false'"):
+        PrefBiasConfig(absorbing="false").check()  # a non-empty string is true: the switch would be on
 
 
 # ---- a planted belief on nav1 ---------------------------------------------------------------

@@ -170,6 +170,9 @@ class PrefBiasConfig:
     (docs/experiments/gym.md, "The runs so far")."""
 
     def check(self) -> None:
+        for f in dataclasses.fields(self):  # a switch given as a string ("false") would be on
+            if isinstance(f.default, bool) and not isinstance(getattr(self, f.name), bool):
+                raise ValueError(f"{f.name} must be True or False, got {getattr(self, f.name)!r}")
         if self.absorbing_state not in ABSORBING_STATES:
             raise ValueError(
                 f"absorbing_state must be one of {', '.join(ABSORBING_STATES)}, got {self.absorbing_state!r}"
