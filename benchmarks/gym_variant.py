@@ -41,7 +41,8 @@ def _summary(rec: dict) -> dict:
     height) and their mean length in steps."""
     eps = [np.asarray(ep) for seed in rec["paths"] for ep in seed]
     top = max(float(np.max(ep[:, 1])) for ep in eps)
-    return {"final": float(np.mean(rec["final"])), "top_height": top, "length": float(np.mean([len(ep) for ep in eps]))}
+    steps = [len(ep) - 1 for ep in eps]  # a path holds the first observation and one a step
+    return {"final": float(np.mean(rec["final"])), "top_height": top, "length": float(np.mean(steps))}
 
 
 def main() -> None:
