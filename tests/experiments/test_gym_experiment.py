@@ -223,7 +223,7 @@ def test_the_reward_error_is_zero_for_the_person_s_reward_and_two_for_its_revers
 
 def test_bad_input_is_refused_with_one_line(tmp_path, capsys):
     for extra, says in (
-        (["--worlds", "mars"], "gym has no domain 'mars': choose from lunar, hopper, cheetah, hopper-mjx, cheetah-mjx"),
+        (["--worlds", "mars"], f"gym has no domain 'mars': choose from {', '.join(pg.DOMAINS)}"),
         (["--env", "gym:Pendulum-v1"], "gym has no domain 'gym:Pendulum-v1'"),
         (["--seeds", "0"], "--seeds must be at least 1"),
         (["--participants", "3"], "--participants belongs to the coffee study"),
