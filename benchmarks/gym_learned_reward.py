@@ -47,7 +47,8 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
     out = pc.train_dir(root, job) / f"seed-{seed}"
     if not (out / "checkpoint.npz").is_file():
         return None
-    if not (root / SEEDS / job.key.replace("/", "__") / f"seed-{seed}.json").is_file():
+    record = root / SEEDS / job.key.replace("/", "__") / f"seed-{seed}.json"
+    if not record.is_file():
         raise ValueError(f"seed {seed} of {job.key} has not finished (no partial record): reading it would train it")
     res = gym._train(world, job, cfg.seeds, out=out, fresh=False, progress=False, seed_ids=(seed,))
     carry = jax.tree.map(lambda x: x[0], res["carry"])
@@ -62,7 +63,7 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
     r_abs = np.asarray(absorbing_fn(p, jnp.asarray(nxt[ended]))) if absorbing_fn is not None and ended.any() else 0.0
     row = {
         "seed": seed,
-        "final": float(json.loads((root / SEEDS / job.key.replace("/", "__") / f"seed-{seed}.json").read_text())["final"][0]),
+        "final": float(json.loads(record.read_text())["final"][0]),
         "r_alive": float(r[~ended].mean()),
         "r_end": float(r[ended].mean()) if ended.any() else float("nan"),
         "r_abs": float(np.mean(r_abs)),
