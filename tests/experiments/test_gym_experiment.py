@@ -249,6 +249,10 @@ def test_the_presets_and_the_jobs():
     by = {j.key: j for j in pg.jobs(replace(full, levels=True))}
     assert full.seeds == 5 and by["hopper/prefbias-q400"].cfg.total_steps == pg.FULL_STEPS["hopper"]
     assert by["cheetah/sac-level"].cfg.total_steps == gc.LEVELS["cheetah"].steps == 1_000_000
+    # a variant of a domain runs as long as the domain, and has no published level
+    fixed = {j.key: j for j in pg.jobs(replace(full, worlds=("hopper-fixed",), levels=True))}
+    assert [k.split("/")[1] for k in fixed] == list(learners)
+    assert fixed["hopper-fixed/sac"].cfg.total_steps == pg.FULL_STEPS["hopper"]
     # the learners' SAC is the cheaper one measured against the published levels' (gym.md, "A cheaper SAC");
     # the level runs keep the levels' own 256 × 256 with an update every step
     level, learner = by["cheetah/sac-level"].cfg.sac, by["cheetah/sac"].cfg.sac

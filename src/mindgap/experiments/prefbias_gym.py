@@ -124,8 +124,9 @@ DOMAINS = {
 that every queried segment has ten real steps — the identifiability condition 3 that the hopper
 fails (docs/experiments/identifiability.md; docs/experiments/gym.md, "The hopper's falls"). Its
 person believes the same dynamics as the hopper's (an episode's end is a rule of the task, not of
-the dynamics), fitted to the same belief env. Not in the presets: ``benchmarks/gym_variant.py
---world hopper-fixed`` runs a job of the full preset on it."""
+the dynamics), fitted to the same belief env. Not in the presets' domains: ``mindgap reproduce gym
+--worlds hopper-fixed`` runs it with the hopper's steps, and ``benchmarks/gym_variant.py --world
+hopper-fixed`` one seed of a full-preset job beside the committed run."""
 
 
 def domain(name: str, who: str = "gym") -> Domain:
@@ -280,9 +281,12 @@ def preset(name: str) -> GymConfig:
 
 
 def _steps(cfg: GymConfig, name: str) -> int:
-    if name not in cfg.steps:
+    """The domain's steps per run; a variant of a domain without its own (``hopper-fixed``) takes those
+    of the domain before its ``-`` (``hopper``), so that the presets run it as they run the original."""
+    own = name if name in cfg.steps else name.split("-")[0]
+    if own not in cfg.steps:
         raise ValueError(f"gym: no step budget for domain {name!r} (config steps: {', '.join(cfg.steps)})")
-    return int(cfg.steps[name])
+    return int(cfg.steps[own])
 
 
 def jobs(cfg: GymConfig) -> list[pc.Job]:
