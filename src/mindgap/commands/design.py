@@ -256,7 +256,8 @@ def _terrain_worlds(specs, belief):
 
 
 def prefbias_overrides(items: list[str]) -> dict:
-    """``FIELD=VALUE`` items as PrefBiasConfig fields (VALUE a Python literal; a bare word is a string)."""
+    """``FIELD=VALUE`` items as PrefBiasConfig fields (VALUE a Python literal, a bare word a string, a switch
+    true or false)."""
     import ast
 
     from ..algorithms.prefbias_inference import PrefBiasConfig
