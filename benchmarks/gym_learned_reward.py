@@ -30,7 +30,8 @@ import numpy as np
 from mindgap.algorithms import methods
 from mindgap.experiments import prefbias_common as pc
 from mindgap.experiments import prefbias_gym as gym
-from mindgap.experiments._runfolder import SEEDS
+from mindgap.experiments._runfolder import partial_path
+from mindgap.experiments._seed_slices import slice_dir
 from mindgap.models.prefbias_nets import belief_log_prob
 
 LAST = 50_000
@@ -44,10 +45,10 @@ def _chunked(fn, *arrays, size: int = 20_000) -> np.ndarray:
 
 def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
     """One seed's figures (module docstring), or None when its checkpoint is not here."""
-    out = pc.train_dir(root, job) / f"seed-{seed}"
+    out = slice_dir(pc.train_dir(root, job), (seed,))
     if not (out / "checkpoint.npz").is_file():
         return None
-    record = root / SEEDS / job.key.replace("/", "__") / f"seed-{seed}.json"
+    record = partial_path(root, job.key, seed)
     if not record.is_file():
         raise ValueError(f"seed {seed} of {job.key} has not finished (no partial record): reading it would train it")
     res = gym._train(world, job, cfg.seeds, out=out, fresh=False, progress=False, seed_ids=(seed,))
@@ -108,7 +109,7 @@ def main() -> None:
             print(f"{s} | {e}")
             continue
         if row is None:
-            print(f"{s} | no checkpoint in {pc.train_dir(args.root, job)}/seed-{s}")
+            print(f"{s} | no checkpoint in {slice_dir(pc.train_dir(args.root, job), (s,))}")
             continue
         print(" | ".join(f"{row[c]:.3f}" if isinstance(row.get(c), float) else str(row.get(c, "–")) for c in cols))
 

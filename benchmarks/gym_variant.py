@@ -33,7 +33,7 @@ from mindgap._io import atomic_write
 from mindgap.commands.design import prefbias_overrides
 from mindgap.envs.interface import EnvError
 from mindgap.experiments import prefbias_gym as gym
-from mindgap.experiments._runfolder import RunFolder
+from mindgap.experiments._runfolder import RunFolder, partial_path
 
 
 def _summary(rec: dict) -> dict:
@@ -71,7 +71,7 @@ def main() -> None:
             raise ValueError(f"--set changes PrefBias's inference, and {args.job} is not a PrefBias job")
         if args.world is not None:
             gym.check_domain(args.world, "--world")
-            cfg = dataclasses.replace(cfg, worlds=(args.world,), steps={args.world: cfg.steps[job.world]})
+            cfg = dataclasses.replace(cfg, worlds=(args.world,))  # its steps: gym._steps
             job = {j.method + j.label: j for j in gym.jobs(cfg)}[job.method + job.label]
         if changed:
             pb = dataclasses.replace(job.cfg.prefbias, **changed)
@@ -92,7 +92,7 @@ def main() -> None:
         return f"final {x['final']:.1f}, top height {x['top_height']:.1f}, episodes of {x['length']:.0f} steps"
 
     line = f"{job.key} seed {args.seed} with {changed}: {said(_summary(rec))}"
-    committed = args.committed / "seeds" / args.job.replace("/", "__") / f"seed-{args.seed}.json"
+    committed = partial_path(args.committed, args.job, args.seed)
     if committed.is_file():
         line += f"; committed {args.job}: {said(_summary(json.loads(committed.read_text())))}"
     print(line)
