@@ -21,10 +21,10 @@ def test_the_claims_on_hand_made_rows():
         for c in gc.domain_claims("lunar", [row("prefbias", 50), row("pebble", 190), row("sac", 200)])
     }
     assert list(held.values()) == [False]
-    for name in ("hopper", "cheetah", "cheetah-mjx"):
+    for name in ("hopper", "cheetah", "cheetah-mjx", "hopper-fixed"):
         rows_ = [row("prefbias", 900, queries=200), row("prefbias", 1500), row("pebble", 300), row("sac", 3000)]
         (c,) = gc.domain_claims(name, rows_)
-        assert c["held"] and c["id"] == f"gym/{name.removesuffix('-mjx')}-above-pebble"
+        assert c["held"] and c["id"] == f"gym/{name.split('-')[0]}-above-pebble"
         assert c["text"].startswith(f"{name}: PrefBias ") and c["text"].endswith(
             ": prefbias 800 above pebble 800 (by more than 2 standard errors)"
         )

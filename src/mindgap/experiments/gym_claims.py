@@ -80,9 +80,10 @@ def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) ->
       SAC, above PEBBLE is closer to SAC;
     * SAC's level (:data:`LEVELS`, the project's check): SAC on the belief env reaches the published level.
 
+    A variant of a domain (``hopper-fixed``, ``cheetah-mjx``) is checked as its figure's domain.
     With one seed there is no standard error, and the comparisons are not met.
     """
-    base = name.removesuffix("-mjx")
+    base = name.split("-")[0]
     sac = next((r for r in rows if r["method"] == "sac"), None)
     pbrl_rows = [r for r in rows if r["method"] in ("prefbias", "pebble")]
     pb = [r for r in pbrl_rows if r["method"] == "prefbias"]

@@ -124,9 +124,11 @@ DOMAINS = {
 that every queried segment has ten real steps — the identifiability condition 3 that the hopper
 fails (docs/experiments/identifiability.md; docs/experiments/gym.md, "The hopper's falls"). Its
 person believes the same dynamics as the hopper's (an episode's end is a rule of the task, not of
-the dynamics), fitted to the same belief env. Not in the presets' domains: ``mindgap reproduce gym
---worlds hopper-fixed`` runs it with the hopper's steps, and ``benchmarks/gym_variant.py --world
-hopper-fixed`` one seed of a full-preset job beside the committed run."""
+the dynamics), fitted to the same belief env. It is the dissertation's kind of hopper: §3.4.2.3 describes
+DeepMind Control's ``hopper-hop``, whose episodes run a fixed 1,000 steps. Not in the presets'
+domains: ``mindgap reproduce gym --worlds hopper-fixed`` runs it with the hopper's steps (the full
+run's in ``results/gym-hopper-fixed``), and ``benchmarks/gym_variant.py --world hopper-fixed`` one
+seed of a full-preset job beside the committed run."""
 
 
 def domain(name: str, who: str = "gym") -> Domain:
