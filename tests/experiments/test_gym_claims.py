@@ -30,6 +30,15 @@ def test_the_claims_on_hand_made_rows():
         )
         (c,) = gc.domain_claims(name, [row("prefbias", 310, std=50), row("pebble", 300, std=50), row("sac", 3000)])
         assert not c["held"]  # above, but within two standard errors
+    # the coin-flip control: PrefBias against itself on coin-flip answers, left out of the figure's claim
+    coin = {**row("prefbias", 2000), "person": "coin"}
+    claims = gc.domain_claims("hopper", [row("prefbias", 1500), row("pebble", 300), coin])
+    assert [(c["id"], c["held"]) for c in claims] == [("gym/hopper-above-pebble", True), ("gym/coin-control", False)]
+    assert claims[0]["measured"].startswith("1500.0 vs 300.0") and "learns from the answers" in claims[1]["text"]
+    claims = gc.domain_claims(
+        "lunar", [row("prefbias", 50), row("pebble", 80), row("sac", 200), {**coin, "return_mean": -500}]
+    )
+    assert [(c["id"], c["held"]) for c in claims] == [("gym/lunar-below-sac", True), ("gym/coin-control", True)]
     level = {**row("sac-level", 2000.0), "steps": 1_000_000}
     claims = gc.domain_claims("hopper", [row("prefbias", 1500), row("pebble", 300)], level_row=level)
     assert [c["held"] for c in claims] == [True, True] and "after 1000000 steps" in claims[1]["measured"]

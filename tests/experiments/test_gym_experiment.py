@@ -239,7 +239,15 @@ def test_bad_input_is_refused_with_one_line(tmp_path, capsys):
 
 def test_the_presets_and_the_jobs():
     full = pg.preset("full")
-    learners = ("reference", "sac", "pebble-q800", "prefbias-q200", "prefbias-q400", "prefbias-q800")
+    learners = (
+        "reference",
+        "sac",
+        "pebble-q800",
+        "prefbias-q200",
+        "prefbias-q400",
+        "prefbias-q800",
+        "prefbias-q800-coin",
+    )
     keys = [j.key for j in pg.jobs(full)]
     for w in ("lunar", "hopper", "cheetah"):
         assert [k for k in keys if k.startswith(w + "/")] == [f"{w}/{n}" for n in learners]  # levels: opt-in
@@ -263,6 +271,12 @@ def test_the_presets_and_the_jobs():
     assert replace(level, hidden=(128, 128), train_every=2) == learner
     assert by["lunar/pebble-q800"].cfg.absorbing_state == "single" and by["lunar/prefbias-q800"].cfg.prefbias.absorbing
     assert pc.teacher_of(by["lunar/prefbias-q800"]) == "biased" and pc.teacher_of(by["lunar/sac"]) == "true"
+    # the coin-flip control: PrefBias at the largest budget whose person answers by a fair coin (β = 0),
+    # everything else as the biased person's job; the fast preset (a dry run) has none
+    coin, biased = by["hopper/prefbias-q800-coin"], by["hopper/prefbias-q800"]
+    assert coin.tags["person"] == "coin" and coin.cfg.teacher.beta == 0.0 and biased.cfg.teacher.beta == 1.0
+    assert replace(coin.cfg, teacher=biased.cfg.teacher) == biased.cfg
+    assert not any(j.key.endswith("-coin") for j in pg.jobs(pg.preset("fast")))
     # the learners share one schedule
     pb, peb, sac = (by[f"lunar/{n}"].cfg for n in ("prefbias-q800", "pebble-q800", "sac"))
     for name in ("total_steps", "chunk", "eval_every", "eval_episodes", "sac", "feedback_every", "segment"):

@@ -193,6 +193,12 @@ SOURCES: dict[str, Source] = {
         "§3.4.3, l. 743",
         "“for Cheetah (see Figure 20), PrefBias can better match the performance of SAC, compared to PEBBLE baseline.”",
     ),
+    "gym/coin-control": Source(
+        _P,
+        "§3.4.3, l. 743",
+        "A control the project adds: PrefBias (800 queries) on coin-flip answers with the same budget "
+        "and schedule; what PrefBias reaches must come from the answers, not from its prior or the task.",
+    ),
     "gym/sac-level": Source(
         _P,
         "§3.4.1.2, l. 655",

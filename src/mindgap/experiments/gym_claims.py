@@ -78,6 +78,9 @@ def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) ->
       the performance of SAC, compared to PEBBLE"): PrefBias (the largest budget) above PEBBLE by
       more than two standard errors of the difference — on the cheetah, where both stay below
       SAC, above PEBBLE is closer to SAC;
+    * the coin-flip control (the project's check): PrefBias above the same PrefBias on coin-flip
+      answers (a row tagged ``person="coin"``, left out of the claims above) by more than two
+      standard errors of the difference;
     * SAC's level (:data:`LEVELS`, the project's check): SAC on the belief env reaches the published level.
 
     A variant of a domain (``hopper-fixed``, ``cheetah-mjx``) is checked as its figure's domain.
@@ -85,6 +88,8 @@ def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) ->
     """
     base = name.split("-")[0]
     sac = next((r for r in rows if r["method"] == "sac"), None)
+    coin = [r for r in rows if r.get("person") == "coin" and r["method"] == "prefbias"]
+    rows = [r for r in rows if r.get("person") != "coin"]
     pbrl_rows = [r for r in rows if r["method"] in ("prefbias", "pebble")]
     pb = [r for r in pbrl_rows if r["method"] == "prefbias"]
     peb = [r for r in pbrl_rows if r["method"] == "pebble"]
@@ -108,6 +113,18 @@ def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) ->
                 f"{name}: {_ABOVE_PEBBLE[base]}: {top['label']} above {p['label']} (by more than 2 standard errors)",
                 gap > z,
                 f"{top['return_mean']:.1f} vs {p['return_mean']:.1f} (difference {gap:+.1f}, 2 SE {z:.1f})",
+            )
+        )
+    twin = [r for r in pb if coin and r["queries"] == coin[0]["queries"]]
+    if twin:
+        a, c = twin[0], coin[0]
+        gap, z = a["return_mean"] - c["return_mean"], 2 * _se(a, c)
+        out.append(
+            pc.claim(
+                "gym/coin-control",
+                f"{name}: {a['label']} learns from the answers: above coin-flip answers (by more than 2 standard errors)",
+                gap > z,
+                f"{a['return_mean']:.1f} vs {c['return_mean']:.1f} (difference {gap:+.1f}, 2 SE {z:.1f})",
             )
         )
     if level_row is not None and base in LEVELS:

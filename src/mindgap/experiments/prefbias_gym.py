@@ -240,6 +240,9 @@ class GymConfig:
     methods: tuple[str, ...] = ()
     """More preference learners by registered name, each beside PEBBLE on every domain with PEBBLE's
     budget and schedule (:func:`~.prefbias_common.method_job`). Empty in the dissertation's presets."""
+    coin: bool = True
+    """Also run PrefBias (largest budget) on coin-flip answers (:func:`~.prefbias_common.coin_flips`):
+    the control that what PrefBias reaches comes from the answers, not from its prior or the task."""
     levels: bool = False
     """Also train SAC on each host domain's belief env for :data:`~.gym_claims.LEVELS`' budget (``sac-level``,
     ``--levels``): opt-in, as the level runs are not part of Figs. 18–20 and cost about a day on a
@@ -267,6 +270,7 @@ def preset(name: str) -> GymConfig:
             budgets=(30,),
             pebble_queries=30,
             seeds=1,
+            coin=False,
             steps={k: 1500 for k in FULL_STEPS},
             level_steps=1500,
             level_sac=None,
@@ -306,6 +310,11 @@ def jobs(cfg: GymConfig) -> list[pc.Job]:
         for q in cfg.budgets:
             pb = replace(learn.prefbias, queries=q)
             out.append(pc.prefbias_job(w, pb, f"PrefBias ({q} queries)", f"prefbias-q{q}"))
+        if cfg.coin:
+            q = max(cfg.budgets)
+            pb = replace(learn.prefbias, queries=q)
+            label = f"PrefBias ({q} queries, coin-flip answers)"
+            out.append(pc.prefbias_job(w, pb, label, f"prefbias-q{q}-coin", person="coin"))
         if cfg.levels and w in LEVELS:
             steps = cfg.level_steps or LEVELS[w].steps
             sac = replace(learn.sac, total_steps=steps, sac=cfg.level_sac or learn.sac.sac)
@@ -421,6 +430,7 @@ _ORDER = {"prefbias": 0, "pebble": 1, "sac": 2, "sac-level": 3}
 
 def _order(rec: dict) -> tuple:
     return (
+        rec["tags"].get("person") == "coin",  # the control after the learners it checks
         _ORDER.get(rec["method"], 1.5),
         rec["tags"].get("queries", 0),
         rec["method"],
@@ -518,7 +528,8 @@ def _figures(out: Path, name: str, recs: list[dict], note: str = "") -> None:
         title=f"{name}: {domain(name).title} — return under the env's reward (mean ± std over seeds)",
         note=note,
     )
-    shown = [max((r for r in recs if r["method"] == "prefbias"), key=lambda r: r["tags"]["queries"], default=None)]
+    biased = [r for r in recs if r["method"] == "prefbias" and r["tags"].get("person") != "coin"]
+    shown = [max(biased, key=lambda r: r["tags"]["queries"], default=None)]
     shown = [r for r in shown if r] + [r for r in recs if r["method"] in ("pebble", "sac")]
     save_paths(
         out / f"trajectories_{name}.png",
