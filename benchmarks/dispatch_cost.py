@@ -10,7 +10,15 @@ three ways, per update, best of ``--reps`` runs of ``--steps`` updates, at each 
   donated;
 * **packed**: the same, but the state handed over as one float32 and one int32 array, sliced back
   into its arrays inside the program and concatenated again at its end (exact: the updates are
-  bit-identical, which it checks).
+  bit-identical, which it checks);
+* **callback**: the scan again, each iteration also stepping a real ``Pendulum-v1`` on the host
+  through ``jax.experimental.io_callback`` (ordered) with the actor's mean action, and its next
+  observation fed back into the carry: what a host loop that runs the env from inside one program
+  would pay a step instead of a call.
+
+It also checks whether the scanned updates end in the same state, bit for bit, as the dispatched
+ones (``scan = dispatch``): whether a loop could move from one form to the other without changing
+a run.
 
 The difference between the first two is the price of a call, paid once a step by the host loop.
 To see where a call's time goes, record the process with ``perf record -p PID`` while it runs the
@@ -32,7 +40,7 @@ from mindgap import rng
 from mindgap.algorithms.sac import SACConfig, sac_init, sac_update
 from mindgap.data.batch import Batch
 
-CASES = ("scanned", "dispatched", "packed")
+CASES = ("scanned", "dispatched", "packed", "callback")
 
 
 def packer(tree):
@@ -54,6 +62,36 @@ def packer(tree):
         return jax.tree.unflatten(treedef, out)
 
     return pack, unpack
+
+
+def _with_callback(state, batch: Batch, keys, cfg: SACConfig, reps: int) -> float:
+    """Seconds for ``len(keys)`` scanned updates, each iteration stepping a host Pendulum-v1 (module docstring)."""
+    import gymnasium as gym
+    from jax.experimental import io_callback
+
+    from mindgap.models.mlp import mlp
+
+    env = gym.make("Pendulum-v1")
+    env.reset(seed=0)
+    shape = jax.ShapeDtypeStruct((batch.obs.shape[1] + 1,), jnp.float32)
+
+    def host_step(action):
+        obs, reward, terminated, truncated, _ = env.step(np.asarray(action))
+        if terminated or truncated:
+            obs, _ = env.reset()
+        return np.concatenate([obs, [reward]]).astype(np.float32)
+
+    def body(carry, kk):
+        s, obs = carry
+        action = jnp.tanh(mlp(s.params.actor, obs[None])[0, : batch.act.shape[1]])
+        out = io_callback(host_step, shape, action, ordered=True)
+        s = sac_update(s, batch, kk, cfg)[0]
+        return (s, out[:-1]), None
+
+    run = jax.jit(lambda s, o: jax.lax.scan(body, (s, o), keys)[0])
+    obs0 = jnp.zeros(batch.obs.shape[1], jnp.float32)
+    jax.block_until_ready(run(state, obs0))
+    return best_of(lambda: jax.block_until_ready(run(state, obs0)), reps)
 
 
 def measure(hidden: int, steps: int, reps: int, only: str | None) -> dict:
@@ -95,7 +133,16 @@ def measure(hidden: int, steps: int, reps: int, only: str | None) -> dict:
 
         run()
         out[name] = best_of(run, reps)
+    if only in (None, "callback"):
+        out["callback"] = _with_callback(state, batch, keys, cfg, reps)
     if only is None:
+        held = jax.tree.map(jnp.array, state)
+        for kk in listed:
+            held = one(held, kk)
+        scanned = jax.jit(lambda s: jax.lax.scan(lambda c, kk: (sac_update(c, batch, kk, cfg)[0], None), s, keys)[0])
+        out["scan_identical"] = all(
+            bool((x == y).all()) for x, y in zip(jax.tree.leaves(held), jax.tree.leaves(scanned(state)))
+        )
         a = one(jax.tree.map(jnp.array, state), listed[0])
         b = unpack(packed(jax.jit(pack)(state), listed[0]))
         out["identical"] = all(bool((x == y).all()) for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)))
@@ -116,8 +163,10 @@ def main() -> None:
         extra = ""
         if "scanned" in t and "dispatched" in t:
             extra = f"; a call costs {t['dispatched'] - t['scanned']:.0f}"
+        if "callback" in t and "scanned" in t:
+            extra += f"; a host step from inside the scan costs {t['callback'] - t['scanned']:.0f}"
         if "identical" in t:
-            extra += f"; packed bit-identical: {t['identical']}"
+            extra += f"; packed bit-identical: {t['identical']}; scan = dispatch: {t['scan_identical']}"
         print(f"{h}×{h}: " + ", ".join(parts) + extra, flush=True)
 
 
