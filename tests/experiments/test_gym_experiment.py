@@ -179,6 +179,33 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
     check_report(out, tmp_path / "report", "gym")
 
 
+def test_the_coin_flip_control_trains_on_fair_coins_and_is_checked_apart(stand_ins, tmp_path, monkeypatch):
+    """The full preset's control on the fast schedule: PrefBias on a person at β = 0, its own row and
+    curve, the project's check against the biased person's PrefBias, and no part in the figure's claim."""
+    cfg = replace(pg.preset("fast"), worlds=("lunar",), coin=True)
+    out = tmp_path / "gym"
+    seen = []
+    train = methods.train
+
+    def watch(method, world, c, seeds=1, **kw):
+        seen.append((method, c.queries, getattr(c, "teacher", None) and c.teacher.beta))
+        return train(method, world, c, seeds, **kw)
+
+    monkeypatch.setattr(methods, "train", watch)
+    pg.run(cfg, out, fresh=False, progress=False, assemble_only=False)
+    assert sorted(x for x in seen if x[0] == "prefbias") == [("prefbias", 30, 0.0), ("prefbias", 30, 1.0)]
+    results = [r for r in rows(out / "results.csv") if r["method"] == "prefbias"]
+    assert [(r["label"], r.get("person", "")) for r in results] == [
+        ("PrefBias (30 queries)", ""),
+        ("PrefBias (30 queries, coin-flip answers)", "coin"),
+    ]
+    claims = {c["id"]: c for c in json.loads((out / "summary.json").read_text())["claims"]}
+    assert set(claims) == {"gym/lunar-below-sac", "gym/coin-control"}
+    assert "PrefBias (30 queries, coin" not in claims["gym/lunar-below-sac"]["measured"]
+    assert claims["gym/coin-control"]["held"] is False  # one seed: no standard error
+    assert (out / "jobs" / "lunar__prefbias-q30-coin.json").exists()
+
+
 def test_assemble_reads_a_run_whose_other_domains_have_no_job_yet(stand_ins, tmp_path):
     out = tmp_path / "gym"
     base = ["reproduce", "gym", "--fast", "--quiet", "--worlds", "lunar,hopper", "--out", str(out)]
