@@ -14,6 +14,7 @@ learner's r_w and log f_φ (Eq. 3.5) and for the simulated person r_H and max(lo
 absorbing steps score 0 and r_abs). The seed's final greedy return is the record's.
 
     python benchmarks/gym_learned_reward.py --job hopper/prefbias-q200 [--root results/gym] [--seeds 0 1 2 3 4]
+    python benchmarks/gym_learned_reward.py --job hopper-fixed/prefbias-q800 --root results/gym-hopper-fixed
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import jax
@@ -93,6 +95,9 @@ def main() -> None:
     p.add_argument("--seeds", type=int, nargs="+", default=None)
     args = p.parse_args()
     cfg = gym.preset("full")
+    name = args.job.split("/")[0]
+    if name in gym.DOMAINS and name not in cfg.worlds:  # a domain outside the presets (hopper-fixed)
+        cfg = replace(cfg, worlds=(name,))
     job = {j.key: j for j in gym.jobs(cfg)}.get(args.job)
     if job is None:
         sys.exit(f"gym_learned_reward: no job {args.job!r} in the full preset")
