@@ -204,6 +204,7 @@ def test_the_coin_flip_control_trains_on_fair_coins_and_is_checked_apart(stand_i
     assert "PrefBias (30 queries, coin" not in claims["gym/lunar-below-sac"]["measured"]
     assert claims["gym/coin-control"]["held"] is False  # one seed: no standard error
     assert (out / "jobs" / "lunar__prefbias-q30-coin.json").exists()
+    assert any(r.get("person") == "coin" for r in rows(out / "curves.csv"))  # its curve beside the learners'
 
 
 def test_assemble_reads_a_run_whose_other_domains_have_no_job_yet(stand_ins, tmp_path):
