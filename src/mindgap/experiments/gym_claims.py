@@ -54,6 +54,11 @@ LEVELS = {
 """Per host domain, the published SAC level (docs/experiments/gym.md cites the tables)."""
 
 
+def figure_domain(name: str) -> str:
+    """The preset domain a domain or its variant (``hopper-fixed``, ``cheetah-mjx``) stands for: its name before ``-``."""
+    return name.split("-")[0]
+
+
 def _se(a: dict, b: dict) -> float:
     """Standard error of the difference of two rows' mean final returns (seeds independent); NaN with one seed."""
     if min(a["seeds"], b["seeds"]) < 2:
@@ -86,7 +91,7 @@ def domain_claims(name: str, rows: list[dict], level_row: dict | None = None) ->
     A variant of a domain (``hopper-fixed``, ``cheetah-mjx``) is checked as its figure's domain.
     With one seed there is no standard error, and the comparisons are not met.
     """
-    base = name.split("-")[0]
+    base = figure_domain(name)
     sac = next((r for r in rows if r["method"] == "sac"), None)
     coin = [r for r in rows if r.get("person") == "coin" and r["method"] == "prefbias"]
     rows = [r for r in rows if r.get("person") != "coin"]

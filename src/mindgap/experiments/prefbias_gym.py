@@ -59,7 +59,7 @@ from ..teachers.learned_belief import BeliefFitConfig, fit_learned_belief, with_
 from . import prefbias_common as pc
 from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
-from .gym_claims import LEVELS, NO_X, domain_claims
+from .gym_claims import LEVELS, NO_X, domain_claims, figure_domain
 from .gym_measures import belief_line, job_costs, reference_record, reward_error
 
 # ---------------------------------------------------------------------------------------
@@ -289,7 +289,7 @@ def preset(name: str) -> GymConfig:
 def _steps(cfg: GymConfig, name: str) -> int:
     """The domain's steps per run; a variant of a domain without its own (``hopper-fixed``) takes those
     of the domain before its ``-`` (``hopper``), so that the presets run it as they run the original."""
-    own = name if name in cfg.steps else name.split("-")[0]
+    own = name if name in cfg.steps else figure_domain(name)
     if own not in cfg.steps:
         raise ValueError(f"gym: no step budget for domain {name!r} (config steps: {', '.join(cfg.steps)})")
     return int(cfg.steps[own])
