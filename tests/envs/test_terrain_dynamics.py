@@ -55,6 +55,12 @@ def bump_params():
     return _params("bump")
 
 
+# One program each for every case and wall rule: the world, the position and the action are arguments,
+# not constants of a program compiled per test.
+_density = jax.jit(jax.vmap(log_prob_pos, in_axes=(None, None, None, 0)))
+_draws = jax.jit(jax.vmap(sample_next, in_axes=(0, None, None, None)))
+
+
 def _grid(pos, k):
     """Midpoints of a k×k grid per cell over the 3×3 block around pos, and the cell area."""
     cx, cy = np.floor(pos)
@@ -68,7 +74,7 @@ def _grid(pos, k):
 def test_density_integrates_to_one(params, name, pos, action):
     pos, action = jnp.asarray(pos, jnp.float32), jnp.asarray(action, jnp.float32)
     pts, area = _grid(np.asarray(pos), 240)
-    dens = jnp.exp(jax.jit(jax.vmap(lambda q: log_prob_pos(params, pos, action, q)))(pts))
+    dens = jnp.exp(_density(params, pos, action, pts))
     stay = jnp.exp(log_prob_pos(params, pos, action, pos))
     total = float(stay + dens.sum() * area)
     assert total == pytest.approx(1.0, abs=2e-3), name
@@ -83,7 +89,7 @@ def test_density_matches_subcell_masses(params, name, pos, action):
     n, k = 4, 160
     stay, probs = subcell_probs(params, pos, action, n)
     pts, area = _grid(np.asarray(pos), k)
-    dens = np.exp(np.asarray(jax.jit(jax.vmap(lambda q: log_prob_pos(params, pos, action, q)))(pts)))
+    dens = np.exp(np.asarray(_density(params, pos, action, pts)))
     per_sub = dens.reshape(3 * n, k // n, 3 * n, k // n).sum((1, 3)) * area
     np.testing.assert_allclose(per_sub, np.asarray(probs), atol=2e-3)
     assert float(jnp.exp(log_prob_pos(params, pos, action, pos))) == pytest.approx(float(stay), abs=1e-4)
@@ -94,7 +100,7 @@ def test_samples_follow_the_masses(params, name, pos, action, key):
     """Chi-square test of 20 000 draws of ``sample_next`` against the exact sub-cell masses."""
     pos, action = jnp.asarray(pos, jnp.float32), jnp.asarray(action, jnp.float32)
     n, draws = 4, 20_000
-    nxt = np.asarray(jax.jit(jax.vmap(lambda k: sample_next(k, params, pos, action)))(jax.random.split(key, draws)))
+    nxt = np.asarray(_draws(jax.random.split(key, draws), params, pos, action))
     stayed = np.all(nxt == np.asarray(pos), axis=1)
     corner = np.floor(np.asarray(pos)) - 1
     sub = np.floor((nxt[~stayed] - corner) * n).astype(int)
@@ -152,7 +158,7 @@ def test_slide_keeps_the_motion_along_a_wall():
     keys = jax.random.split(jax.random.key(3), 2000)
     for walls in ("bump", "slide"):
         world = _params("bump").with_dynamics(Dynamics.from_dict(dict(table, walls=walls)))
-        nxt = np.asarray(jax.vmap(lambda k: sample_next(k, world, pos, a))(keys))
+        nxt = np.asarray(_draws(keys, world, pos, a))
         moved = ~np.all(nxt == np.asarray(pos), axis=1)
         lp_stay = float(log_prob_pos(world, pos, a, pos))
         if walls == "bump":
@@ -162,7 +168,7 @@ def test_slide_keeps_the_motion_along_a_wall():
             assert np.abs(nxt[:, 0] - (3.5 - 0.5)).max() < 0.25  # the x motion is kept
             gap = 5.0 - nxt[:, 1]  # distance from the wall's face: about Exp(mean σ²/d = 0.008)
             assert np.all(gap > 0) and gap.max() < 0.1 and gap.mean() < 0.02
-            dens = np.asarray(jax.vmap(lambda q: log_prob_pos(world, pos, a, q))(jnp.asarray(nxt)))
+            dens = np.asarray(_density(world, pos, a, jnp.asarray(nxt)))
             assert np.all(np.isfinite(dens))  # every draw is a point the density gives mass to
 
 

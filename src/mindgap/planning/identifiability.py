@@ -86,6 +86,20 @@ def parameter_slots(params, true: Dynamics, belief: Dynamics) -> list[tuple[str,
     return slots
 
 
+def _table_slots(dyn: Dynamics) -> tuple[tuple[str, str, int | None], ...]:
+    """Every entry of a dynamics table as a slot (speed, noise and stuck of each terrain, the pit term's two).
+
+    The Fisher information of the whole table holds θ's as its rows and columns for θ's slots: a
+    parameter's score does not depend on which others are differentiated. Computing it for the
+    table, whose shape is every terrain world's, compiles one program where θ's own slots would
+    compile one per set of biased parameters.
+    """
+    per_terrain = tuple(
+        (f"{TERRAINS[c]}.{f}", f, c) for c in range(len(np.asarray(dyn.speed))) for f in ("speed", "noise", "stuck")
+    )
+    return (*per_terrain, ("pit_noise", "pit_noise", None), ("pit_scale", "pit_scale", None))
+
+
 def _get(dyn: Dynamics, slots) -> jax.Array:
     return jnp.stack([getattr(dyn, f) if c is None else getattr(dyn, f)[c] for _, f, c in slots]).astype(jnp.float32)
 
@@ -135,10 +149,23 @@ def belief_information(
             for k, pol in zip(jax.random.split(k_roll, len(behaviour)), behaviour, strict=True)
         ]
         trans = jax.tree.map(lambda *x: jnp.concatenate(x), *trans)
+        # one program for every world of a shape: the information of the whole table, then θ's rows and columns
+        table = _table_slots(belief_params.dynamics)
         info = _information(
-            k_pair, world_params, belief_params, trans, slots, theta_h, float(beta), segment, log_t_floor, draws, pairs
+            k_pair,
+            world_params,
+            belief_params,
+            trans,
+            table,
+            _get(belief_params.dynamics, table),
+            float(beta),
+            segment,
+            log_t_floor,
+            draws,
+            pairs,
         )
-        info = np.asarray(info, np.float64) * budget
+        rows = [table.index(s) for s in slots]
+        info = np.asarray(info, np.float64)[np.ix_(rows, rows)] * budget
         se = np.sqrt(np.clip(np.diag(np.linalg.pinv(info, hermitian=True)), 0.0, None))
         se = np.where(np.diag(info) > 1e-12, se, np.inf)
     return [
