@@ -34,8 +34,9 @@ def test_score_and_pathwise_gradients_agree_in_expectation():
     mu = jnp.asarray([1.0, -1.0])
     alpha = jnp.asarray([[3.0, 1.0, 2.0, 1.5, 1.0]] * 4) * jnp.arange(1.0, 5.0)[:, None]
     keys = jax.random.split(rng.key(5), 400)
-    path = jax.vmap(lambda k: jax.grad(pathwise_elbo, argnums=(0, 1))(mu, alpha, k, data, cfg))(keys)
-    score = jax.vmap(lambda k: score_gradient(mu, alpha, k, data, cfg)[1:])(keys)
+    # jitted: one program each, where vmapped op by op every operation compiled its own
+    path = jax.jit(jax.vmap(lambda k: jax.grad(pathwise_elbo, argnums=(0, 1))(mu, alpha, k, data, cfg)))(keys)
+    score = jax.jit(jax.vmap(lambda k: score_gradient(mu, alpha, k, data, cfg)[1:]))(keys)
     for p, s in zip(path, score, strict=True):
         p_mean, s_mean = np.asarray(p.mean(0)), np.asarray(s.mean(0))
         s_err = np.asarray(s.std(0)) / np.sqrt(len(keys))  # standard error of the noisier estimator
