@@ -1,4 +1,4 @@
-"""Check: what a gym job's learned reward pays for living against ending, read from its seeds' checkpoints.
+"""Check: what a gym job's learned reward pays and what the person's answers carried, read from its seeds' checkpoints.
 
 A learner trained on a learned reward with absorbing states (docs/methods/pbrl.md, "Absorbing
 states") ends its episodes at once when a step alive earns less than the absorbing state it would
@@ -8,10 +8,16 @@ resumes the finished slice (nothing trains; about 25 s) and prints, over the rep
 transitions, the learned reward's mean on the steps that did not end the episode (r_w at the
 posterior mean, the reward SAC trained on), on the steps that ended it, and the absorbing states'
 r_abs at the states ended in (worth γ r_abs / (1 − γ) on top of an ending step's reward),
-the share of transitions that ended an episode in the last 50,000 (a hopper that falls at once
-ends one in about seven), and the two halves of each side's score of a step alive: for PrefBias the
-learner's r_w and log f_φ (Eq. 3.5) and for the simulated person r_H and max(log T_H, floor) (their
-absorbing steps score 0 and r_abs). The seed's final greedy return is the record's.
+the share of transitions that ended an episode in the last 50,000 (a hopper that falls at once ends
+one in about seven), the correlation of r_w with the environment's reward r_H over the whole buffer
+and over its last 50,000 transitions (what the final policy does: a learned reward that pays what
+r_H charges shows as a negative one), and the two halves of each side's score of a step alive: for
+PrefBias the learner's r_w and log f_φ (Eq. 3.5) and for the simulated person r_H and max(log T_H,
+floor) (their absorbing steps score 0 and r_abs), with the spread of each of the person's two halves
+over the buffer's steps and over its consecutive windows of a query segment's length (the person
+scores sums over segments), and r_w's correlation with the second (which of the two the person's
+answers follow, and whether r_w learned the belief's half instead of the reward's). The seed's final
+greedy return is the record's.
 
     python benchmarks/gym_learned_reward.py --job hopper/prefbias-q200 [--root results/gym] [--seeds 0 1 2 3 4]
     python benchmarks/gym_learned_reward.py --job hopper-fixed/prefbias-q800 --root results/gym-hopper-fixed
@@ -73,10 +79,20 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
         "ended_share_last": float(ended[-LAST:].mean()),
         "r_H_alive": float(np.asarray(rp.env_reward[:n])[~ended].mean()),
     }
+    r_h = np.asarray(rp.env_reward[:n])
+    row["corr_r_H"] = float(np.corrcoef(r, r_h)[0, 1])
+    row["corr_r_H_last"] = float(np.corrcoef(r[-LAST:], r_h[-LAST:])[0, 1])
     belief = next(iter(world.beliefs.values()))  # the person's only belief: the learned one
     floor = job.cfg.teacher.log_t_floor
     log_t = _chunked(jax.jit(lambda o, a, o2: world.env.log_prob(o, a, o2, belief)), obs, act, nxt)
-    row["log_T_H_alive"] = float(np.maximum(log_t, floor)[~ended].mean())
+    scored = np.maximum(log_t, floor)
+    row["log_T_H_alive"] = float(scored[~ended].mean())
+    row["sd_r_H"] = float(r_h.std())
+    row["sd_log_T_H"] = float(scored.std())
+    row["corr_log_T_H"] = float(np.corrcoef(r, scored)[0, 1])
+    seg = job.cfg.segment  # the halves summed over consecutive windows of a query segment's length
+    row["sd_seg_r_H"] = float(r_h[: n - n % seg].reshape(-1, seg).sum(1).std())
+    row["sd_seg_log_T_H"] = float(scored[: n - n % seg].reshape(-1, seg).sum(1).std())
     if job.method == "prefbias":
         post = carry.model.posterior
         phi = post.belief.mean
@@ -105,7 +121,24 @@ def main() -> None:
         sys.exit(f"gym_learned_reward: {args.job} learns no reward from preferences")
     world, _ = gym.load_world(job.world, cfg)
     seeds = args.seeds if args.seeds is not None else list(range(cfg.seeds))
-    cols = ["seed", "final", "ended_share_last", "r_alive", "r_end", "r_abs", "log_f_alive", "r_H_alive", "log_T_H_alive"]
+    cols = [
+        "seed",
+        "final",
+        "ended_share_last",
+        "corr_r_H",
+        "corr_r_H_last",
+        "r_alive",
+        "r_end",
+        "r_abs",
+        "log_f_alive",
+        "r_H_alive",
+        "log_T_H_alive",
+        "sd_r_H",
+        "sd_log_T_H",
+        "corr_log_T_H",
+        "sd_seg_r_H",
+        "sd_seg_log_T_H",
+    ]
     print(" | ".join(cols))
     for s in seeds:
         try:
