@@ -236,6 +236,18 @@ def test_the_conditions_are_measured_per_domain():
         assert "of random-action transitions" in conds[1]["why"]
 
 
+def test_each_belief_env_ends_its_episodes_as_its_true_env_does():
+    """The person's belief is fitted to random episodes of the belief env: where those ended at a fall and the
+    task's did not, the belief never saw a fallen robot and put its moves at the teacher's floor."""
+    for name in ("lunar", "hopper", "cheetah", "hopper-fixed"):
+        d = pg.DOMAINS[name]
+        ended = [
+            float(np.mean(gm.random_host(w, 3, 0)[1] < w.horizon))
+            for w in (gym_world_from_spec(pg._spec(spec, 200)) for spec in (d.env, d.belief_env))
+        ]
+        assert (ended[0] > 0) == (ended[1] > 0), (name, ended)
+
+
 def test_the_reward_error_is_zero_for_the_person_s_reward_and_two_for_its_reverse():
     world = gym_world_from_spec("gym:mindgap/SolarWindLander-v0,max_episode_steps=100")
     cfg = pg.preset("fast")

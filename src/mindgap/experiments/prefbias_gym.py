@@ -107,7 +107,7 @@ DOMAINS = {
     ),
     "hopper-fixed": Domain(
         f"gym:mindgap/NoisyHopper-v0,{FIXED}",
-        f"gym:Hopper-v5,{NO_X}",
+        f"gym:Hopper-v5,{NO_X},{FIXED}",
         "host",
         f"gym:mindgap/NoisyHopper-v0,{FIXED}",
         "hopper with hidden noise, episodes of fixed length",
@@ -123,8 +123,11 @@ DOMAINS = {
 ``terminate_when_unhealthy=False``: 1,000 steps each, the healthy reward paid only while healthy), so
 that every queried segment has ten real steps — the identifiability condition 3 that the hopper
 fails (docs/experiments/identifiability.md; docs/experiments/gym.md, "The hopper's falls"). Its
-person believes the same dynamics as the hopper's (an episode's end is a rule of the task, not of
-the dynamics), fitted to the same belief env. It is the dissertation's kind of hopper: §3.4.2.3 describes
+person believes the same reliable dynamics as the hopper's, fitted to the reliable hopper whose
+episodes do not end either: a model fitted where random episodes end at the fall has never seen a
+fallen hopper, and put 93% of a reliable fixed-length hopper's random steps at the teacher's floor
+(0.1% when fitted on the fixed-length one; ``benchmarks/gym_answer_split.py --world hopper-fixed``,
+docs/experiments/gym.md, "What the answers carry"). It is the dissertation's kind of hopper: §3.4.2.3 describes
 DeepMind Control's ``hopper-hop``, whose episodes run a fixed 1,000 steps. Not in the presets'
 domains: ``mindgap reproduce gym --worlds hopper-fixed`` runs it with the hopper's steps (the full
 run's in ``results/gym-hopper-fixed``), and ``benchmarks/gym_variant.py --world hopper-fixed`` one
