@@ -9,7 +9,9 @@ On terrain world d1 (batch 256, one update a step, auto α), each part timed alo
 * one update on a fixed batch (:func:`~mindgap.algorithms.sac.sac_update`, its state carried, so
   nothing is hoisted out of the scan);
 * the same update with the three Adam optimisers on one flat vector each (``optax.flatten``),
-  and whether its result is bit-for-bit the tree optimisers'.
+  and whether its result is bit-for-bit the tree optimisers';
+* the sum of the parameters' magnitudes after the scanned updates, so that runs under other
+  ``XLA_FLAGS`` show whether they compute the same numbers.
 
     python benchmarks/sac_profile.py [--sizes 64 128] [--steps 500]
 """
@@ -80,10 +82,11 @@ def main() -> None:
         same = all(
             bool((a == b).all()) for a, b in zip(jax.tree.leaves(out_tree.params), jax.tree.leaves(out_flat.params))
         )
+        checksum = sum(float(abs(x).sum()) for x in jax.tree.leaves(out_tree.params))
         print(
             f"{h}×{h}: step {full:.0f} µs ({1e6 / full:,.0f} steps/s); without the update {bare:.0f}; "
             f"a minibatch draw {sample:.0f}; the update {tree:.0f} ({tree / full:.0%} of the step); "
-            f"with flat optimisers {flat:.0f} (bit-identical: {same})",
+            f"with flat optimisers {flat:.0f} (bit-identical: {same}); Σ|θ| after the updates {checksum:.6f}",
             flush=True,
         )
 
