@@ -15,6 +15,9 @@ to state with no bias at all, taken out). A ratio far above 1 means the answers 
 held more steps the person finds all but impossible, and carry r_H as a small remainder
 (docs/experiments/gym.md, "What the answers carry", measures the same on the full run's buffers).
 ``0:0`` is the reliable env itself: the spread the belief's half has with no bias at all.
+``--min-std`` raises the floor on the belief's spread (the fit's is 0.01 of the typical step's
+change, as sharp as a model of a deterministic simulator gets): how the split depends on how sharp
+the person's expectation is, which the dissertation leaves open.
 
     python benchmarks/gym_answer_split.py --world cheetah --noise 0:0 0.05:0.1 0.2:0.5
     python benchmarks/gym_answer_split.py --world hopper-fixed --steps 20000
@@ -90,6 +93,14 @@ def main() -> None:
         default=[(0.0, 0.0), (0.05, 0.1), (0.05, 0.5), (0.2, 0.1), (0.2, 0.5)],
         help="SHARE:SCALE amounts of hidden noise to measure (noisy domains only; default: a grid with the domain's 0.2:0.5)",
     )
+    p.add_argument(
+        "--min-std",
+        type=float,
+        nargs="+",
+        default=None,
+        help="floors on the belief's spread, in units of the typical step's change (default: the fit's own, 0.01): "
+        "a person who expects the robot only roughly where the reliable one would go",
+    )
     p.add_argument("--steps", type=int, default=20_000, help="random-action transitions per amount")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
@@ -116,18 +127,22 @@ def main() -> None:
         except (EnvError, ValueError) as e:
             sys.exit(f"gym_answer_split: {e}")
         print(f"belief fitted to {record['belief_env']}: held-out log-likelihood {record['held_out_log_lik']:.2f}")
+    if args.min_std is not None and not all(m > 0 for m in args.min_std):
+        sys.exit("gym_answer_split: --min-std must be positive")
+    floors = [None] if args.min_std is None else args.min_std
     d = gym.domain(args.world)
     amounts = args.noise if args.world in NOISY else [None]
     print(
-        "world | share | scale | sd Σ r_H | steps at the floor | mean max(log T_H, floor) | sd Σ belief | ratio"
+        "world | min std | share | scale | sd Σ r_H | steps at the floor | mean max(log T_H, floor) | sd Σ belief | ratio"
         " | the same against the most expected outcome: at the floor | mean | sd Σ belief | ratio"
     )
-    for amount in amounts:
+    for floor, amount in ((f, a) for f in floors for a in amounts):
         spec = d.env if amount is None else f"{d.env},share={amount[0]},scale={amount[1]}"
         variant = gym_world_from_spec(gym._spec(spec, cfg.horizon))
-        row = split(variant, belief, args.steps, args.seed)
+        held = belief if floor is None else belief._replace(min_std=jnp.float32(floor))
+        row = split(variant, held, args.steps, args.seed)
         share, scale = ("–", "–") if amount is None else amount
-        cells = [args.world, share, scale, f"{row['sd_r']:.2f}"]
+        cells = [args.world, f"{float(held.min_std):g}", share, scale, f"{row['sd_r']:.2f}"]
         for k in ("", "_rel"):
             cells += [f"{row['at_floor' + k]:.3f}", f"{row['mean_log_T' + k]:.2f}", f"{row['sd_belief' + k]:.2f}"]
             cells.append(f"{row['ratio' + k]:.1f}")
