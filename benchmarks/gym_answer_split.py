@@ -23,8 +23,8 @@ the person's expectation is, which the dissertation leaves open.
     python benchmarks/gym_answer_split.py --world hopper-fixed --steps 20000
 
 The belief is the full preset's (fitted once and cached, as the runs fit it); the windows are
-consecutive steps of episodes restarted when they end (the hopper that terminates restarts every
-few dozen random steps, so ``hopper-fixed`` is the cleaner measure of its dynamics).
+consecutive steps of episodes restarted when they end (a random hopper that terminates falls after
+about twenty steps, so windows cross its episodes' ends; ``hopper-fixed`` is the cleaner measure).
 """
 
 from __future__ import annotations
@@ -85,7 +85,9 @@ def _noise(text: str) -> tuple[float, float]:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--world", default="cheetah", help=f"a domain of the gym experiment: {', '.join(gym.DOMAINS)}")
+    p.add_argument(
+        "--world", default="cheetah", help="a host domain of the gym experiment: hopper, cheetah, lunar, hopper-fixed"
+    )
     p.add_argument(
         "--noise",
         type=_noise,
