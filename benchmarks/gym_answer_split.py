@@ -36,6 +36,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from gym_learned_reward import window_spread
 from mindgap.envs.gym_world import gym_world_from_spec
 from mindgap.envs.interface import EnvError
 from mindgap.experiments import prefbias_gym as gym
@@ -53,17 +54,17 @@ def split(world, belief, steps: int, seed: int) -> dict:
     """The figures of one world (module docstring) over ``steps`` random-action transitions."""
     obs, act, nxt = (jnp.asarray(x) for x in collect(world, steps, seed))
     r = np.asarray(jax.jit(jax.vmap(lambda o, a, o2: world.env.reward(o, a, o2, world.params)))(obs, act, nxt))
-    log_t = np.asarray(jax.jit(lambda o, a, o2: learned_log_prob(o, a, o2, belief))(obs, act, nxt))
+    log_prob = jax.jit(lambda o, a, o2: learned_log_prob(o, a, o2, belief))
+    log_t = np.asarray(log_prob(obs, act, nxt))
     # the same density taken against its most expected outcome, the believed mean: −½ Σ ((s' − μ)/σ)²
     mode = jax.jit(lambda o, a: predict(belief.model, o, a, belief.min_std)[0])(obs, act)
-    log_t_mode = np.asarray(jax.jit(lambda o, a, o2: learned_log_prob(o, a, o2, belief))(obs, act, mode))
+    log_t_mode = np.asarray(log_prob(obs, act, mode))
     floor = TeacherConfig().log_t_floor
-    n = steps - steps % SEGMENT
-    sd_r = float(r[:n].reshape(-1, SEGMENT).sum(1).std())
+    sd_r = window_spread(r, SEGMENT)
     row = {"sd_r": sd_r}
     for name, lt in (("", log_t), ("_rel", log_t - log_t_mode)):
         scored = np.maximum(lt, floor)
-        sd_b = float(scored[:n].reshape(-1, SEGMENT).sum(1).std())
+        sd_b = window_spread(scored, SEGMENT)
         row |= {
             f"at_floor{name}": float((lt <= floor).mean()),
             f"mean_log_T{name}": float(scored.mean()),

@@ -51,6 +51,12 @@ def _chunked(fn, *arrays, size: int = 20_000) -> np.ndarray:
     return np.concatenate([np.asarray(fn(*(a[i : i + size] for a in arrays))) for i in range(0, n, size)])
 
 
+def window_spread(x: np.ndarray, length: int) -> float:
+    """The standard deviation of ``x``'s sums over consecutive windows of ``length`` steps (a query segment's)."""
+    n = len(x) - len(x) % length
+    return float(x[:n].reshape(-1, length).sum(1).std())
+
+
 def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
     """One seed's figures (module docstring), or None when its checkpoint is not here."""
     out = slice_dir(pc.train_dir(root, job), (seed,))
@@ -77,9 +83,9 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
         "r_end": float(r[ended].mean()) if ended.any() else float("nan"),
         "r_abs": float(np.mean(r_abs)),
         "ended_share_last": float(ended[-LAST:].mean()),
-        "r_H_alive": float(np.asarray(rp.env_reward[:n])[~ended].mean()),
     }
     r_h = np.asarray(rp.env_reward[:n])
+    row["r_H_alive"] = float(r_h[~ended].mean())
     row["corr_r_H"] = float(np.corrcoef(r, r_h)[0, 1])
     row["corr_r_H_last"] = float(np.corrcoef(r[-LAST:], r_h[-LAST:])[0, 1])
     belief = next(iter(world.beliefs.values()))  # the person's only belief: the learned one
@@ -90,9 +96,8 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
     row["sd_r_H"] = float(r_h.std())
     row["sd_log_T_H"] = float(scored.std())
     row["corr_log_T_H"] = float(np.corrcoef(r, scored)[0, 1])
-    seg = job.cfg.segment  # the halves summed over consecutive windows of a query segment's length
-    row["sd_seg_r_H"] = float(r_h[: n - n % seg].reshape(-1, seg).sum(1).std())
-    row["sd_seg_log_T_H"] = float(scored[: n - n % seg].reshape(-1, seg).sum(1).std())
+    row["sd_seg_r_H"] = window_spread(r_h, job.cfg.segment)
+    row["sd_seg_log_T_H"] = window_spread(scored, job.cfg.segment)
     if job.method == "prefbias":
         post = carry.model.posterior
         phi = post.belief.mean
