@@ -119,6 +119,9 @@ def test_a_floor_on_log_f_scores_each_step_as_the_person_does(key):
     assert "log_f_floor" not in fast.as_dict()["prefbias"]
     floored = dataclasses.replace(fast, prefbias=dataclasses.replace(fast.prefbias, log_f_floor=-20.0))
     assert floored.as_dict()["prefbias"]["log_f_floor"] == -20.0
+    assert "scale_prior_std" not in fast.as_dict()["prefbias"]
+    spread = dataclasses.replace(fast, prefbias=dataclasses.replace(fast.prefbias, scale_prior_std=1.0))
+    assert spread.as_dict()["prefbias"]["scale_prior_std"] == 1.0
 
 
 def test_stay_head_scores_a_stay_by_its_probability(key):
@@ -488,6 +491,17 @@ def test_belief_prior_scales_are_narrow_on_the_move_and_wide_on_the_stay(key):
     np.testing.assert_allclose(flat[:-14], 0.01)  # the whole MLP, its stay column included
     rand = dataclasses.replace(column, belief_prior="random", random_prior_std=0.7)
     np.testing.assert_allclose(belief_prior_scales(net, 2, rand)[:-1], 0.7)
+    # scale_prior_std: wide on the biases of the raw-scale columns (outputs 2, 3) only, with or without bumps
+    spread = dataclasses.replace(column, scale_prior_std=1.5)
+    (w, b) = jax.tree.map(np.asarray, ravel_pytree(net)[1](belief_prior_scales(net, 2, spread)))[-1]
+    np.testing.assert_allclose(b, [0.01, 0.01, 1.5, 1.5, 2.0])
+    np.testing.assert_allclose(w[:, :-1], 0.01)
+    bumped = belief_prior_scales(local, 2, dataclasses.replace(spread, stay_local=True))
+    (w, b) = jax.tree.map(np.asarray, ravel_pytree(local)[1](bumped)).net[-1]
+    np.testing.assert_allclose(b, [0.01, 0.01, 1.5, 1.5, 0.01])
+    np.testing.assert_allclose(belief_prior_scales(net, 2, dataclasses.replace(rand, scale_prior_std=1.5))[:-1], 0.7)
+    with pytest.raises(ValueError, match="scale_prior_std must be positive or None"):
+        dataclasses.replace(column, scale_prior_std=0.0).check()
 
 
 def test_a_local_stay_disturbance_moves_the_stay_probability_near_its_bump_only(key):
@@ -507,7 +521,9 @@ def test_a_local_stay_disturbance_moves_the_stay_probability_near_its_bump_only(
     obs = jnp.array([[-1.0, -1.0], [1.0, 1.0]])  # the first and the last bump's centres
     act, nxt = jnp.zeros((2, 2)), obs + 0.05
     zero = BeliefWeights(net, jnp.zeros(m), jnp.zeros(m))
-    np.testing.assert_array_equal(belief_log_prob(zero, norm, obs, act, nxt, 0.01), belief_log_prob(net, norm, obs, act, nxt, 0.01))
+    np.testing.assert_array_equal(
+        belief_log_prob(zero, norm, obs, act, nxt, 0.01), belief_log_prob(net, norm, obs, act, nxt, 0.01)
+    )
     np.testing.assert_allclose(stay_features(obs, m)[0, 0], STAY_GAIN)
     lifted = BeliefWeights(net, jnp.zeros(m).at[0].set(3.0 / STAY_GAIN), jnp.zeros(m))
     logit = lambda p: np.log(p) - np.log1p(-p)  # noqa: E731
@@ -545,7 +561,9 @@ def test_fit_keeps_the_posterior_that_predicts_the_held_out_answers_best(key):
     held = np.arange(64) % 4 == 3
 
     def held_nll(s):
-        p = np.clip(np.asarray(preference_prob(s.reward.mean, s.belief.mean, norm, data.seg_a, data.seg_b, cfg)), 1e-6, 1 - 1e-6)
+        p = np.clip(
+            np.asarray(preference_prob(s.reward.mean, s.belief.mean, norm, data.seg_a, data.seg_b, cfg)), 1e-6, 1 - 1e-6
+        )
         y = np.asarray(data.label)
         return float(np.mean(-(y * np.log(p) + (1 - y) * np.log1p(-p))[held]))
 

@@ -71,8 +71,8 @@ class PrefBiasLoopConfig(Schedule):
     def as_dict(self) -> dict:
         """The run record's config; ``prefbias.absorbing``, ``prefbias.stay_head`` and ``prefbias.noise_local``
         (with its prior) only when on, and
-        ``prefbias.absorbing_state`` only when not the default, ``prefbias.log_f_floor`` only when set,
-        so run folders from before them still resume."""
+        ``prefbias.absorbing_state`` only when not the default, ``prefbias.log_f_floor`` and
+        ``prefbias.scale_prior_std`` only when set, so run folders from before them still resume."""
         d = super().as_dict()
         for name in ("absorbing", "stay_head"):
             if not getattr(self.prefbias, name):
@@ -81,8 +81,9 @@ class PrefBiasLoopConfig(Schedule):
             del d["prefbias"]["noise_local"], d["prefbias"]["noise_prior_std"]
         if not self.prefbias.absorbing or self.prefbias.absorbing_state == "terminal":
             del d["prefbias"]["absorbing_state"]
-        if self.prefbias.log_f_floor is None:  # recorded only when set, so run folders from before it still resume
-            del d["prefbias"]["log_f_floor"]
+        for name in ("log_f_floor", "scale_prior_std"):  # recorded only when set (run folders from before resume)
+            if getattr(self.prefbias, name) is None:
+                del d["prefbias"][name]
         return d
 
     def check(self) -> None:

@@ -133,6 +133,15 @@ class PrefBiasConfig:
     of the move's raw scale (σ = floor + softplus(raw), in units of the displacement's spread), so that a
     belief that moves are noisier in one place (nav1-v1's ice: 0.2 cells against the truth's 0.05) can be
     learned while the network's own scale stays pinned by ``belief_prior_std``."""
+    scale_prior_std: float | None = None
+    """s_φ on the biases of the raw-scale output columns of f_φ's MLP (σ = floor + softplus(raw), per
+    axis; dynamics prior only): how reliable the person may believe every move to be, everywhere.
+    §3.4.2.3's person believes the noisy robot "is operating reliably": her belief differs from f_ψ in
+    the spread of a move, not in where it goes, and with ``belief_prior_std`` on every weight f_φ's
+    spread cannot leave f_ψ's. A wide scale here states that (the global counterpart of
+    ``noise_local``'s bumps, which exist on worlds of at most three observation dimensions). None (the
+    default): ``belief_prior_std`` like every other weight (measured in docs/experiments/gym.md,
+    "What the answers carry")."""
     random_prior_std: float = 1.0
     """s_φ on every weight with ``belief_prior="random"``: a prior centred on a random network knows
     nothing of the belief, so it is as wide as the reward's (``reward_prior_std``); the narrow scales
@@ -182,8 +191,9 @@ class PrefBiasConfig:
         for name in ("reward_prior_std", "belief_prior_std", "noise_prior_std", "random_prior_std", "init_std", "lr"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.stay_prior_std is not None and not self.stay_prior_std > 0:
-            raise ValueError(f"stay_prior_std must be positive or None, got {self.stay_prior_std}")
+        for name in ("stay_prior_std", "scale_prior_std"):
+            if getattr(self, name) is not None and not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive or None, got {getattr(self, name)}")
         if self.kl_scale < 0 or self.mc_samples < 1 or self.batch_size < 1 or self.updates < 1:
             raise ValueError("kl_scale must be ≥ 0; mc_samples, batch_size and updates at least 1")
         floor = self.log_f_floor
@@ -349,11 +359,15 @@ def negative_elbo(state: PrefBiasState, data: PrefData, key: jax.Array, cfg: Pre
 def belief_prior_scales(belief_mean: Params, obs_dim: int, cfg: PrefBiasConfig) -> jax.Array:
     """s_φ of every parameter of f_φ, flat in ``ravel_pytree`` order: ``belief_prior_std`` on the MLP
     (``random_prior_std`` with ``belief_prior="random"``) and ``stay_prior_std`` on the stay disturbance:
-    the local one's weights, or without one (and with the dynamics prior) the stay logit's output column."""
+    the local one's weights, or without one (and with the dynamics prior) the stay logit's output column;
+    with the dynamics prior and ``scale_prior_std``, that on the biases of the raw-scale columns."""
     base = cfg.random_prior_std if cfg.belief_prior == "random" else cfg.belief_prior_std
     stay = base if cfg.stay_prior_std is None else cfg.stay_prior_std
     net = belief_net(belief_mean)
     scales = jax.tree.map(lambda x: jnp.full_like(x, base), net)
+    if cfg.belief_prior == "dynamics" and cfg.scale_prior_std is not None:
+        sw, sb = scales[-1]
+        scales = (*scales[:-1], (sw, sb.at[..., obs_dim : 2 * obs_dim].set(cfg.scale_prior_std)))
     if isinstance(belief_mean, BeliefWeights):  # the disturbances' priors are per unit of a bump's height
         local = BeliefWeights(
             scales,
