@@ -16,17 +16,29 @@ random pairs from the first 80% of the windows, has the person answer them (the 
   round fits them);
 * PEBBLE's reward ensemble (:func:`~mindgap.models.reward_ensemble.train_reward`, the full preset's).
 
+``--variant 'FIELD=VALUE …'`` (repeatable) fits PrefBias again with those config fields changed,
+``--scale-prior-std`` and ``--log-f-floor`` with those, ``--updates`` with more rounds, and ``--oracle``
+each of them told the person's belief (f_φ's prior centred on her model, with her floors: at r_w = r_H
+its score is hers exactly), which asks whether reaching her belief is all PrefBias lacks.
+
 On the held-out last 20% of the windows it prints, per person and learner, the correlation of the
 learned Σ r_w with Σ r_H (did it learn the reward?) and with the belief half Σ max(log T_H, floor)
 (did it learn the belief's half instead?), and the share of held-out window pairs r_w orders as
 r_H does (0.5: no better than chance). Beside the persons with a belief: one who scores Σ r_H
-alone (the most the answers can teach at this many queries) and coin flips (the least). Means ± standard deviations over ``--seeds`` (each seed
-draws fresh pairs, answers and initialisations; the transitions are shared). Not a run's figures: the learners see the robot's own
-steps, not random ones, and pick their queries; what it does show is whether the answers about
+alone (the most the answers can teach at this many queries) and coin flips (the least). Then, per
+person and PrefBias variant, how Σ log f_φ compares with her belief half (at f_ψ and at the posterior
+mean; for the rows without a belief, the run's person's half), and how far one draw of f_φ from q
+moves a window's Σ log f_φ, at the start of the fit and after it (the likelihood of each answer is
+taken under one draw: SPEC's condition that the belief posterior's draws stay well inside what they
+must tell apart). Means ± standard deviations over ``--seeds`` (each seed draws fresh pairs, answers
+and initialisations; the transitions are shared). Not a run's figures: the learners see the robot's
+own steps, not random ones, and pick their queries; what it does show is whether the answers about
 random steps carry r_H to each learner at each sharpness.
 
-    python benchmarks/gym_reward_from_answers.py --world hopper-fixed --min-std 0.01 1
+    python benchmarks/gym_reward_from_answers.py --world hopper-fixed --min-std 0.01 0.1 1
     python benchmarks/gym_reward_from_answers.py --world cheetah --seeds 3 --queries 800
+    python benchmarks/gym_reward_from_answers.py --world hopper-fixed --min-std 0.01 --persons belief --oracle
+        --variant "init_std=0.001 belief_prior_std=0.001"   (one command)
 """
 
 from __future__ import annotations
@@ -40,11 +52,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from mindgap.algorithms.prefbias_inference import fit, prefbias_init
+from mindgap.commands.design import prefbias_overrides
 from mindgap.data.prefs import prefs_add, prefs_init
 from mindgap.data.segments import Segments
 from mindgap.experiments import prefbias_gym as gym
 from mindgap.models.gaussian_dynamics import dynamics_init, fit_norm, train_dynamics
-from mindgap.models.prefbias_nets import belief_log_prob, posterior_reward
+from mindgap.models.prefbias_nets import belief_log_prob, draw_per_pair, posterior_reward
 from mindgap.models.reward_ensemble import ensemble_reward, reward_init, train_reward
 from mindgap.teachers.learned_belief import collect, learned_log_prob, with_learned_belief
 from mindgap.teachers.preference import answer
@@ -78,6 +91,13 @@ def _cells(rows: list) -> list[str]:
     return [f"{v[:, j].mean():+.2f} ± {v[:, j].std():.2f}" for j in range(v.shape[1])]
 
 
+def oracle(pcfg, belief, floor: float):
+    """PrefBias told the person's belief: f_φ's prior centred on her model (no stay head, as hers has none),
+    with her floor on σ and on the log density, so that at r_w = r_H its score is hers exactly."""
+    dynamics = dataclasses.replace(pcfg.dynamics, min_std=float(belief.min_std))
+    return dataclasses.replace(pcfg, stay_head=False, log_f_floor=floor, dynamics=dynamics)
+
+
 def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: int, cfg, dyn, variants: dict) -> dict:
     """Both learners' rewards from one seed's answers (PrefBias once per config of ``variants``, by name);
     their window sums on the held-out windows, and PrefBias's Σ log f_φ at its prior's centre and posterior mean."""
@@ -92,12 +112,20 @@ def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: in
     data = prefs_init(queries, SEGMENT, d, a, absorbing=True)
     data = prefs_add(data, seg_a, seg_b, label, jnp.ones(queries, bool))
     held = jax.tree.map(lambda x: x[n_train:].reshape(-1, *x.shape[2:]), seg)
-    out = {}
+    out, noise = {}, {}
     for v, pcfg in variants.items():
-        state = prefbias_init(k_pb, d, a, pcfg, dyn, world.obs_units())
+        centre = dyn
+        if isinstance(pcfg, tuple):  # (config, the person's belief): the oracle prior
+            pcfg, centre = pcfg[0], pcfg[1].model
+        state = prefbias_init(k_pb, d, a, pcfg, centre, world.obs_units())
+        noise[v] = [draw_spread(state, pcfg, held)]
         state, _ = jax.jit(fit, static_argnames="cfg")(state, data, k_fit, cfg=pcfg)
+        noise[v].append(draw_spread(state, pcfg, held))
         out[v] = np.asarray(posterior_reward(state.reward.mean, held.obs, held.act, held.next_obs))
-        for name, phi in (("log_f_prior", state.belief_prior), (f"log_f {v}", state.belief.mean)):
+        prior_name = "log_f_prior" if centre is dyn else None  # f_ψ's, the same for every variant centred on it
+        for name, phi in ((prior_name, state.belief_prior), (f"log_f {v}", state.belief.mean)):
+            if name is None:
+                continue
             lf = belief_log_prob(
                 phi, state.norm, held.obs, held.act, held.next_obs, pcfg.dynamics.min_std, state.log_unit
             )
@@ -106,7 +134,20 @@ def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: in
     rstate = reward_init(k_pe, d, a, rcfg, absorbing=lcfg.pebble.absorbing_state)
     rstate, _, _ = jax.jit(train_reward, static_argnames="cfg")(rstate, data, k_tr, cfg=rcfg)
     out["pebble"] = np.asarray(ensemble_reward(rstate.params, held.obs, held.act, held.next_obs))
-    return {k: v.reshape(-1, SEGMENT).sum(1) for k, v in out.items()}
+    return {k: v.reshape(-1, SEGMENT).sum(1) for k, v in out.items()}, noise
+
+
+def draw_spread(state, pcfg, held: Segments, draws: int = 32) -> float:
+    """How far one draw of f_φ from q moves a window's Σ log f_φ: the standard deviation over ``draws`` draws,
+    averaged over the held-out windows (what the likelihood of one answer sees besides the two segments)."""
+    phis = draw_per_pair(state.belief, jax.random.key(7), draws)
+    lf = jax.vmap(
+        lambda phi: belief_log_prob(
+            phi, state.norm, held.obs, held.act, held.next_obs, pcfg.dynamics.min_std, state.log_unit
+        )
+    )(phis)
+    lf = lf if pcfg.log_f_floor is None else jnp.maximum(lf, pcfg.log_f_floor)
+    return float(np.asarray(lf).reshape(draws, -1, SEGMENT).sum(-1).std(0).mean())
 
 
 def main() -> None:
@@ -132,6 +173,19 @@ def main() -> None:
         type=float,
         default=None,
         help="also fit each PrefBias variant with this floor on log f_φ (PrefBiasConfig.log_f_floor; the person's is -20)",
+    )
+    p.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        help="also fit PrefBias with these PrefBiasConfig fields changed, e.g. 'init_std=0.001 belief_prior_std=0.001' "
+        "(repeatable)",
+    )
+    p.add_argument(
+        "--oracle",
+        action="store_true",
+        help="also fit each PrefBias variant told the person's belief (f_φ's prior centred on it): whether reaching the "
+        "belief is what it lacks",
     )
     p.add_argument(
         "--updates", type=int, default=None, help="PrefBias's rounds per fit (default: the full preset's, 300)"
@@ -182,6 +236,13 @@ def main() -> None:
     variants = {"prefbias": base} | {
         f"prefbias, σ prior {x:g}": dataclasses.replace(base, scale_prior_std=x) for x in args.scale_prior_std
     }
+    for text in args.variant:
+        try:
+            over = prefbias_overrides(text.split())
+            variants[f"prefbias, {text}"] = dataclasses.replace(base, **over)
+            variants[f"prefbias, {text}"].check()
+        except (TypeError, ValueError) as e:
+            sys.exit(f"gym_reward_from_answers: --variant {text!r}: {e}")
     if args.log_f_floor is not None:  # each variant again with f_φ's log density floored as the person's is
         variants |= {
             f"{k}, floor {args.log_f_floor:g}": dataclasses.replace(v, log_f_floor=args.log_f_floor)
@@ -193,7 +254,7 @@ def main() -> None:
         f"{args.world}: {args.steps} random steps, {seg.obs.shape[0] - n_train} held-out windows, {args.queries} queries"
     )
     print("person | learner | corr(Σ r_w, Σ r_H) | corr(Σ r_w, Σ belief half) | r_H's order kept")
-    beliefs = {}
+    beliefs, draws = {}, {}
     persons = (
         [("reward only", "true")] * ("reward" in args.persons)
         + [(f"min std {m:g}", m) for m in args.min_std] * ("belief" in args.persons)
@@ -216,10 +277,16 @@ def main() -> None:
             labels_for = lambda k, sa, sb, w=person, bp=held_belief: answer(  # noqa: E731
                 k, sa, sb, w.env, w.params, bp, tcfg
             )[0]
-        learners = [*variants, "pebble"]
-        rows = {k: [] for k in [*learners, "log_f_prior", *(f"log_f {v}" for v in variants)]}
+        variants_here = dict(variants)
+        if args.oracle:  # each variant again, told her belief
+            for k, v in variants.items():
+                variants_here[f"{k}, prior at her belief"] = (oracle(v, held_belief, tcfg.log_t_floor), held_belief)
+        learners = [*variants_here, "pebble"]
+        rows = {k: [] for k in [*learners, "log_f_prior", *(f"log_f {v}" for v in variants_here)]}
         for s in range(args.seeds):
-            sums = learn(world, seg, n_train, labels_for, args.queries, 100 + s, cfg, dyn, variants)
+            sums, noise = learn(world, seg, n_train, labels_for, args.queries, 100 + s, cfg, dyn, variants_here)
+            for k, v in noise.items():
+                draws.setdefault((label_name, k), []).append(v)
             for k in learners:
                 rows[k].append((_corr(sums[k], r_h), _corr(sums[k], b_half), _order(sums[k], r_h, rng)))
             for k in rows.keys() - set(learners):
@@ -237,6 +304,12 @@ def main() -> None:
         for k in sorted(cells):
             name = "the prior's centre (f_ψ)" if k == "log_f_prior" else f"posterior mean, {k[6:]}"
             print(" | ".join([label_name, f"{ratio:.1f}", name, *cells[k]]))
+    print(
+        f"\nperson | PrefBias | sd over 32 draws of f_φ of a held-out window's Σ log f_φ: at the start | after the fit"
+        f" (the windows' sd of Σ r_H: {r_h.std():.1f})"
+    )
+    for (label_name, k), v in draws.items():
+        print(" | ".join([label_name, k, *_cells(v)]))
 
 
 if __name__ == "__main__":
