@@ -98,9 +98,18 @@ def oracle(pcfg, belief, floor: float):
     return dataclasses.replace(pcfg, stay_head=False, log_f_floor=floor, dynamics=dynamics)
 
 
-def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: int, cfg, dyn, variants: dict) -> dict:
-    """Both learners' rewards from one seed's answers (PrefBias once per config of ``variants``, by name);
-    their window sums on the held-out windows, and PrefBias's Σ log f_φ at its prior's centre and posterior mean."""
+def held_out(seg: Segments, n_train: int) -> Segments:
+    """The windows after the first ``n_train`` as one run of steps [N, ·] (scored, never queried)."""
+    return jax.tree.map(lambda x: x[n_train:].reshape(-1, *x.shape[2:]), seg)
+
+
+def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: int, cfg, dyn, variants: dict):
+    """Both learners' rewards from one seed's answers (PrefBias once per config of ``variants``, by name).
+
+    Returns:
+        (their window sums on the held-out windows, with PrefBias's Σ log f_φ at its prior's centre and
+        posterior mean; per PrefBias variant, :func:`draw_spread` at the start of the fit and after it).
+    """
     lcfg = cfg.learners
     key = jax.random.key(seed)
     k_pair, k_ans, k_pb, k_fit, k_pe, k_tr = jax.random.split(key, 6)
@@ -111,7 +120,7 @@ def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: in
     d, a = seg.obs.shape[-1], seg.act.shape[-1]
     data = prefs_init(queries, SEGMENT, d, a, absorbing=True)
     data = prefs_add(data, seg_a, seg_b, label, jnp.ones(queries, bool))
-    held = jax.tree.map(lambda x: x[n_train:].reshape(-1, *x.shape[2:]), seg)
+    held = held_out(seg, n_train)
     out, noise = {}, {}
     for v, pcfg in variants.items():
         centre = dyn
@@ -215,7 +224,7 @@ def main() -> None:
     obs, act, nxt = collect(world, args.steps, 0, progress=True)
     seg = windows(obs, act, nxt)
     n_train = int(seg.obs.shape[0] * (1 - HELD))
-    held = jax.tree.map(lambda x: x[n_train:].reshape(-1, *x.shape[2:]), seg)
+    held = held_out(seg, n_train)
     r_h = np.asarray(
         jax.vmap(lambda o, a, o2: world.env.reward(o, a, o2, world.params))(held.obs, held.act, held.next_obs)
     )
@@ -302,8 +311,8 @@ def main() -> None:
     for label_name, cells in beliefs.items():
         ratio = cells.pop("ratio")
         for k in sorted(cells):
-            name = "the prior's centre (f_ψ)" if k == "log_f_prior" else f"posterior mean, {k[6:]}"
-            print(" | ".join([label_name, f"{ratio:.1f}", name, *cells[k]]))
+            where = "the prior's centre (f_ψ)" if k == "log_f_prior" else f"posterior mean, {k[6:]}"
+            print(" | ".join([label_name, f"{ratio:.1f}", where, *cells[k]]))
     print(
         f"\nperson | PrefBias | sd over 32 draws of f_φ of a held-out window's Σ log f_φ: at the start | after the fit"
         f" (the windows' sd of Σ r_H: {r_h.std():.1f})"
