@@ -51,13 +51,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mindgap.algorithms.prefbias_inference import fit, prefbias_init
+from mindgap.algorithms.prefbias_inference import fit, prefbias_init, scored_log_f
 from mindgap.commands.design import prefbias_overrides
 from mindgap.data.prefs import prefs_add, prefs_init
 from mindgap.data.segments import Segments
 from mindgap.experiments import prefbias_gym as gym
 from mindgap.models.gaussian_dynamics import dynamics_init, fit_norm, train_dynamics
-from mindgap.models.prefbias_nets import belief_log_prob, draw_per_pair, posterior_reward
+from mindgap.models.prefbias_nets import draw_per_pair, posterior_reward
 from mindgap.models.reward_ensemble import ensemble_reward, reward_init, train_reward
 from mindgap.teachers.learned_belief import collect, learned_log_prob, with_learned_belief
 from mindgap.teachers.preference import answer
@@ -98,13 +98,11 @@ def oracle(pcfg, belief, floor: float):
     return dataclasses.replace(pcfg, stay_head=False, log_f_floor=floor, dynamics=dynamics)
 
 
-def held_out(seg: Segments, n_train: int) -> Segments:
-    """The windows after the first ``n_train`` as one run of steps [N, ·] (scored, never queried)."""
-    return jax.tree.map(lambda x: x[n_train:].reshape(-1, *x.shape[2:]), seg)
-
-
-def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: int, cfg, dyn, variants: dict):
-    """Both learners' rewards from one seed's answers (PrefBias once per config of ``variants``, by name).
+def learn(
+    world, seg: Segments, n_train: int, held: Segments, labels_for, queries: int, seed: int, cfg, dyn, variants: dict
+):
+    """Both learners' rewards from one seed's answers to pairs of the first ``n_train`` windows (PrefBias once per
+    config of ``variants``, by name), scored on ``held`` (the other windows as one run of steps).
 
     Returns:
         (their window sums on the held-out windows, with PrefBias's Σ log f_φ at its prior's centre and
@@ -120,7 +118,6 @@ def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: in
     d, a = seg.obs.shape[-1], seg.act.shape[-1]
     data = prefs_init(queries, SEGMENT, d, a, absorbing=True)
     data = prefs_add(data, seg_a, seg_b, label, jnp.ones(queries, bool))
-    held = held_out(seg, n_train)
     out, noise = {}, {}
     for v, pcfg in variants.items():
         centre = dyn
@@ -133,12 +130,8 @@ def learn(world, seg: Segments, n_train: int, labels_for, queries: int, seed: in
         out[v] = np.asarray(posterior_reward(state.reward.mean, held.obs, held.act, held.next_obs))
         prior_name = "log_f_prior" if centre is dyn else None  # f_ψ's, the same for every variant centred on it
         for name, phi in ((prior_name, state.belief_prior), (f"log_f {v}", state.belief.mean)):
-            if name is None:
-                continue
-            lf = belief_log_prob(
-                phi, state.norm, held.obs, held.act, held.next_obs, pcfg.dynamics.min_std, state.log_unit
-            )
-            out[name] = np.asarray(lf if pcfg.log_f_floor is None else jnp.maximum(lf, pcfg.log_f_floor))
+            if name is not None:
+                out[name] = np.asarray(scored_log_f(phi, state.norm, held, pcfg, state.log_unit))
     rcfg = lcfg.pebble.reward
     rstate = reward_init(k_pe, d, a, rcfg, absorbing=lcfg.pebble.absorbing_state)
     rstate, _, _ = jax.jit(train_reward, static_argnames="cfg")(rstate, data, k_tr, cfg=rcfg)
@@ -150,12 +143,7 @@ def draw_spread(state, pcfg, held: Segments, draws: int = 32) -> float:
     """How far one draw of f_φ from q moves a window's Σ log f_φ: the standard deviation over ``draws`` draws,
     averaged over the held-out windows (what the likelihood of one answer sees besides the two segments)."""
     phis = draw_per_pair(state.belief, jax.random.key(7), draws)
-    lf = jax.vmap(
-        lambda phi: belief_log_prob(
-            phi, state.norm, held.obs, held.act, held.next_obs, pcfg.dynamics.min_std, state.log_unit
-        )
-    )(phis)
-    lf = lf if pcfg.log_f_floor is None else jnp.maximum(lf, pcfg.log_f_floor)
+    lf = jax.vmap(lambda phi: scored_log_f(phi, state.norm, held, pcfg, state.log_unit))(phis)
     return float(np.asarray(lf).reshape(draws, -1, SEGMENT).sum(-1).std(0).mean())
 
 
@@ -224,7 +212,7 @@ def main() -> None:
     obs, act, nxt = collect(world, args.steps, 0, progress=True)
     seg = windows(obs, act, nxt)
     n_train = int(seg.obs.shape[0] * (1 - HELD))
-    held = held_out(seg, n_train)
+    held = jax.tree.map(lambda x: x[n_train:].reshape(-1, *x.shape[2:]), seg)  # scored, never queried: steps [N, ·]
     r_h = np.asarray(
         jax.vmap(lambda o, a, o2: world.env.reward(o, a, o2, world.params))(held.obs, held.act, held.next_obs)
     )
@@ -293,7 +281,7 @@ def main() -> None:
         learners = [*variants_here, "pebble"]
         rows = {k: [] for k in [*learners, "log_f_prior", *(f"log_f {v}" for v in variants_here)]}
         for s in range(args.seeds):
-            sums, noise = learn(world, seg, n_train, labels_for, args.queries, 100 + s, cfg, dyn, variants_here)
+            sums, noise = learn(world, seg, n_train, held, labels_for, args.queries, 100 + s, cfg, dyn, variants_here)
             for k, v in noise.items():
                 draws.setdefault((label_name, k), []).append(v)
             for k in learners:

@@ -303,14 +303,19 @@ def _logits_drawn(reward: Gaussian, belief: Gaussian, norm: Norm, log_unit, seg_
     return s[:, 0] - s[:, 1]
 
 
+def scored_log_f(phi: Params, norm: Norm, seg: Segments, cfg: PrefBiasConfig, log_unit=0.0) -> jax.Array:
+    """log f_φ(s' | s, a) of every step as the segment score counts it: floored at ``cfg.log_f_floor`` when set
+    (the person's form of the score), else as Eq. 3.5 writes it: [..., L]."""
+    lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std, log_unit)
+    return lf if cfg.log_f_floor is None else jnp.maximum(lf, cfg.log_f_floor)
+
+
 def scores_fixed(w: Params, phi: Params, norm: Norm, seg: Segments, cfg: PrefBiasConfig, log_unit=0.0) -> jax.Array:
     """S(τ) of each segment for fixed weights of r_w and f_φ (posterior means or one draw): [K].
 
     ``log_unit``: the state's (:class:`PrefBiasState`), so that f_φ scores in the world's units.
     """
-    lf = belief_log_prob(phi, norm, seg.obs, seg.act, seg.next_obs, cfg.dynamics.min_std, log_unit)
-    if cfg.log_f_floor is not None:  # the person's form of the score (PrefBiasConfig.log_f_floor)
-        lf = jnp.maximum(lf, cfg.log_f_floor)
+    lf = scored_log_f(phi, norm, seg, cfg, log_unit)
     s = segment_scores(reward_value(w, seg.obs, seg.act), lf, seg.mask)
     return s + absorbed_scores(absorbing_value(w, terminal_obs(seg)), seg)
 
