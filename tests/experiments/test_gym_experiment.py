@@ -13,6 +13,7 @@ import json
 from dataclasses import replace
 from types import SimpleNamespace
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -327,6 +328,37 @@ def test_the_presets_and_the_jobs():
     with_levels = registry.configure("gym", "full", levels=True)
     assert registry.command("gym", with_levels, "r") == "mindgap reproduce gym --levels --out r"
     assert registry.preset_of("gym", with_levels) == "full"  # an option, as --seeds is
+
+
+def test_the_seen_domains_floor_the_person_s_belief_and_narrow_prefbias_s_posterior():
+    """``hopper-fixed-seen`` and ``cheetah-seen`` are their domains with the person's belief floored at one typical
+    step's change (the same fitted model) and PrefBias's belief posterior at 0.001 a weight; nothing else moves."""
+    for seen, base in (("hopper-fixed-seen", "hopper-fixed"), ("cheetah-seen", "cheetah")):
+        d, b = pg.DOMAINS[seen], pg.DOMAINS[base]
+        assert (d.env, d.belief_env, d.draw) == (b.env, b.belief_env, b.draw) and b.person_min_std is None
+        full = pg.preset("full")
+        jobs = {j.key.split("/")[1]: j.cfg for j in pg.jobs(replace(full, worlds=(seen, base)))}
+        ours = {j.key.split("/")[1]: j.cfg for j in pg.jobs(replace(full, worlds=(seen,)))}
+        theirs = {j.key.split("/")[1]: j.cfg for j in pg.jobs(replace(full, worlds=(base,)))}
+        assert list(ours) == list(theirs) and len(jobs) == len(ours)
+        for key, cfg in ours.items():
+            if key.startswith("prefbias"):
+                pb = cfg.prefbias
+                assert (pb.init_std, pb.belief_prior_std) == (0.001, 0.001) != (theirs[key].prefbias.init_std, 0.01)
+                cfg = replace(cfg, prefbias=replace(pb, init_std=0.01, belief_prior_std=0.01))
+            assert cfg == theirs[key], key
+    fast = pg.preset("fast")
+    world, record = pg.load_world("hopper-fixed-seen", fast)
+    plain, plain_record = pg.load_world("hopper-fixed", fast)
+    belief, plain_belief = (next(iter(w.beliefs.values())) for w in (world, plain))
+    assert float(belief.min_std) == 1.0 and float(plain_belief.min_std) == np.float32(fast.belief_fit.dynamics.min_std)
+    assert record["person_min_std"] == 1.0 and "person_min_std" not in plain_record
+    assert record["path"] == plain_record["path"]  # one fit, one cache entry
+    same = jax.tree.map(lambda x, y: bool(np.array_equal(x, y)), belief.model, plain_belief.model)
+    assert all(jax.tree.leaves(same))
+    # a blunter person finds what happens less surprising, and her held-out fit is measured at her floor
+    assert record["true_below_floor"] <= plain_record["true_below_floor"]
+    assert record["held_out_log_lik"] != plain_record["held_out_log_lik"]
 
 
 @pytest.mark.slow

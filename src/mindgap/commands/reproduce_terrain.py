@@ -1,6 +1,6 @@
 """The terrain-world experiments on the command line: ``mindgap reproduce nav|priors|sampling|eps|lambda``,
-and ``gym`` (the control domains, whose ``--worlds`` are domain names: lunar, hopper, cheetah, hopper-mjx,
-cheetah-mjx; :mod:`~.prefbias_gym`).
+and ``gym`` (the control domains, whose ``--worlds`` are domain names: lunar, hopper, cheetah, hopper-fixed,
+hopper-fixed-seen, cheetah-seen, hopper-mjx, cheetah-mjx; :mod:`~.prefbias_gym`).
 
 mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--method NAME …] [--out DIR] [--fresh] [--quiet] [--assemble]
 mindgap reproduce gym --out DIR --job KEY --seed I     # seed I of one learner job alone (nav, priors, sampling, gym)

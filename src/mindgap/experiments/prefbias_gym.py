@@ -78,6 +78,11 @@ class Domain(NamedTuple):
     draw: str
     """The gym env that draws this domain's rollouts (the MJX worlds' gymnasium twin)."""
     title: str
+    person_min_std: float | None = None
+    """The person's floor on her belief's spread, in units of a typical step's change (None: the fit's own,
+    0.01; :func:`~mindgap.teachers.learned_belief.fit_learned_belief`'s ``min_std``)."""
+    belief_std: float | None = None
+    """PrefBias's belief posterior on this domain: ``init_std`` and ``belief_prior_std`` (None: the preset's)."""
 
 
 FIXED = "terminate_when_unhealthy=False"
@@ -112,6 +117,24 @@ DOMAINS = {
         f"gym:mindgap/NoisyHopper-v0,{FIXED}",
         "hopper with hidden noise, episodes of fixed length",
     ),
+    "hopper-fixed-seen": Domain(
+        f"gym:mindgap/NoisyHopper-v0,{FIXED}",
+        f"gym:Hopper-v5,{NO_X},{FIXED}",
+        "host",
+        f"gym:mindgap/NoisyHopper-v0,{FIXED}",
+        "hopper with hidden noise, episodes of fixed length, a person who expects it as she sees it",
+        person_min_std=1.0,
+        belief_std=0.001,
+    ),
+    "cheetah-seen": Domain(
+        "gym:mindgap/NoisyHalfCheetah-v0",
+        f"gym:HalfCheetah-v5,{NO_X}",
+        "host",
+        "gym:mindgap/NoisyHalfCheetah-v0",
+        "half-cheetah with hidden noise, a person who expects it as she sees it",
+        person_min_std=1.0,
+        belief_std=0.001,
+    ),
     "hopper-mjx": Domain("mjx:hopper", "", "mjx", "gym:mindgap/NoisyHopper-v0", "hopper with hidden noise, MJX"),
     "cheetah-mjx": Domain(
         "mjx:cheetah", "", "mjx", "gym:mindgap/NoisyHalfCheetah-v0", "half-cheetah with hidden noise, MJX"
@@ -131,7 +154,26 @@ docs/experiments/gym.md, "What the answers carry"). It is the dissertation's kin
 DeepMind Control's ``hopper-hop``, whose episodes run a fixed 1,000 steps. Not in the presets'
 domains: ``mindgap reproduce gym --worlds hopper-fixed`` runs it with the hopper's steps (the full
 run's in ``results/gym-hopper-fixed``), and ``benchmarks/gym_variant.py --world hopper-fixed`` one
-seed of a full-preset job beside the committed run."""
+seed of a full-preset job beside the committed run.
+
+``hopper-fixed-seen`` and ``cheetah-seen`` are ``hopper-fixed`` and ``cheetah`` with the person as she
+sees the robot, and a PrefBias whose belief posterior meets SPEC's condition there (the reasons and
+measurements: docs/experiments/gym.md, "The person as she sees the robot"):
+
+* the person's belief is the same fitted model with its spread floored at one typical step's change
+  (``person_min_std`` 1: σ ≥ the spread of a step's change over the fit's steps, per observation), where
+  the fit's own floor is 0.01 of it. "The agent is operating reliably" (§3.4.2.3) says what she expects,
+  not that she can tell apart outcomes a hundredth of a step apart: with the fit's floor her belief's
+  half of Eq. 3.5 spreads 12 times as widely as her reward's over a window of random steps and decides
+  nearly every answer alone, so that no learner (PrefBias told her belief included) finds r_H in her
+  answers; with one step's change it spreads 1.4 (hopper) and 1.2 (cheetah) times as widely, and
+  both halves count;
+* PrefBias's belief posterior at 0.001 a weight (``init_std`` and ``belief_prior_std``): at the preset's
+  0.01 one posterior draw of f_φ moves a window's Σ log f_φ by 91 (hopper) and 111 (cheetah) nats, 8 and
+  20 times Σ r_H's spread over the windows, against SPEC's condition that the draws stay well inside what
+  the answers tell apart; at 0.001 by 2.7, a quarter and a half of it. Set on these domains only, so
+  that the committed runs of the others stand as they ran.
+"""
 
 
 def domain(name: str, who: str = "gym") -> Domain:
@@ -168,7 +210,9 @@ def load_world(name: str, cfg: GymConfig, *, progress: bool = False) -> tuple[ob
         return wm.experiment_world(_spec(d.env, cfg.horizon), "gym"), None
     world = gym_world_from_spec(_spec(d.env, cfg.horizon))
     belief_world = gym_world_from_spec(_spec(d.belief_env, cfg.horizon))
-    belief, record = fit_learned_belief(belief_world, cfg.belief_fit, true_world=world, progress=progress)
+    belief, record = fit_learned_belief(
+        belief_world, cfg.belief_fit, true_world=world, progress=progress, min_std=d.person_min_std
+    )
     return with_learned_belief(world, record["belief_env"], belief), record
 
 
@@ -307,6 +351,9 @@ def jobs(cfg: GymConfig) -> list[pc.Job]:
         n = _steps(cfg, w)
         lc = cfg.learners
         learn = pc.Learners(*(replace(c, total_steps=n) for c in (lc.prefbias, lc.pebble, lc.sac)))
+        if (s := domain(w).belief_std) is not None:
+            pb = replace(learn.prefbias.prefbias, init_std=s, belief_prior_std=s)
+            learn = replace(learn, prefbias=replace(learn.prefbias, prefbias=pb))
         out.append(pc.Job(f"{w}/reference", w, "reference", "reference", cfg.reference, {}))
         out += [pc.oracle_job(w, learn), pc.pebble_job(w, learn, cfg.pebble_queries)]
         out += [pc.method_job(w, name, learn, cfg.pebble_queries) for name in cfg.methods]

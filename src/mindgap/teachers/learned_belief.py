@@ -188,6 +188,7 @@ def fit_learned_belief(
     true_world: GymWorld | None = None,
     cache_dir: str | Path | None = None,
     progress: bool = False,
+    min_std: float | None = None,
 ) -> tuple[LearnedBelief, dict]:
     """Fit (or read from the cache) the person's believed dynamics to transitions of ``belief_world``.
 
@@ -195,6 +196,11 @@ def fit_learned_belief(
         belief_world: the env as the person imagines it (:func:`~mindgap.envs.gym_world.gym_world_from_spec`).
         true_world: the env as it is; its held-out transitions are scored too (``true_log_lik``).
         cache_dir: cache root (:func:`~mindgap._io.cache_root`).
+        min_std: the person's own floor on her belief's spread, in units of the typical step's change
+            (σ = out_std · (floor + softplus(raw))), in place of the fit's (``cfg.dynamics.min_std``): how
+            sharply she expects the robot, a property of the person and not of the fit, so the fitted
+            model (and its cache entry) is the same; the record's held-out figures are measured at it
+            and it is recorded as ``person_min_std``. None: the fit's floor.
 
     Returns:
         (the belief, its record: ``path``, ``transitions``, ``epochs``, ``held_out_log_lik`` — mean
@@ -230,6 +236,13 @@ def fit_learned_belief(
         path.parent.mkdir(parents=True, exist_ok=True)
         save_pytree(path, belief)
         atomic_write(path.with_suffix(".json"), json.dumps(record, indent=2))
+    if min_std is not None:
+        if not (isinstance(min_std, (int, float)) and min_std > 0):
+            raise ValueError(f"a person's floor on her belief's spread must be positive, got {min_std!r}")
+        belief = belief._replace(min_std=jnp.float32(min_std))
+        record = {**record, "person_min_std": float(min_std)}
+        held = collect(belief_world, cfg.held_out, cfg.seed + 1)
+        record["held_out_log_lik"], record["held_out_below_floor"] = _quality(belief, held)
     if true_world is not None:
         record["true_env"] = true_world.name
         record["true_log_lik"], record["true_below_floor"] = _quality(
