@@ -53,6 +53,24 @@ def test_a_second_fit_reads_the_cache_and_a_saved_model_loads_back(tmp_path, mon
     assert lb.cache_key(gym_world_from_spec(HEAVY), other_cfg) != lb.cache_key(gym_world_from_spec(HEAVY), cfg)
 
 
+def test_a_person_s_own_floor_keeps_the_fit_and_is_measured_and_recorded(tmp_path):
+    """``min_std``: how sharply the person expects the robot is hers, not the fit's — the same cached model,
+    its held-out figures measured at her floor; a floor that is not positive is refused."""
+    cfg = lb.BeliefFitConfig.fast()
+    sharp, record = lb.fit_learned_belief(gym_world_from_spec(HEAVY), cfg, cache_dir=tmp_path)
+    blunt, blunt_record = lb.fit_learned_belief(gym_world_from_spec(HEAVY), cfg, cache_dir=tmp_path, min_std=1.0)
+    assert blunt_record["path"] == record["path"] and "person_min_std" not in record
+    assert blunt_record["person_min_std"] == 1.0 and float(blunt.min_std) == 1.0
+    for a, b in zip(jax.tree.leaves(sharp.model), jax.tree.leaves(blunt.model), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # on the belief env's own held-out steps a floor of one typical step's change scores lower than the fit's
+    # (measured: 0.56 against -0.99 nats a step)
+    assert blunt_record["held_out_log_lik"] < record["held_out_log_lik"]
+    for bad in (0.0, -1.0):
+        with pytest.raises(ValueError, match="must be positive"):
+            lb.fit_learned_belief(gym_world_from_spec(HEAVY), cfg, cache_dir=tmp_path, min_std=bad)
+
+
 def test_the_person_scores_segments_with_the_learned_model(tmp_path):
     world = gym_world_from_spec(TRUE)
     belief, _ = lb.fit_learned_belief(gym_world_from_spec(HEAVY), lb.BeliefFitConfig.fast(), cache_dir=tmp_path)
