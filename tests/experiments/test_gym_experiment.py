@@ -13,7 +13,6 @@ import json
 from dataclasses import replace
 from types import SimpleNamespace
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -330,7 +329,7 @@ def test_the_presets_and_the_jobs():
     assert registry.preset_of("gym", with_levels) == "full"  # an option, as --seeds is
 
 
-def test_the_seen_domains_floor_the_person_s_belief_and_narrow_prefbias_s_posterior():
+def test_the_seen_domains_floor_the_person_s_belief_and_narrow_prefbias_s_posterior(monkeypatch):
     """``hopper-fixed-seen`` and ``cheetah-seen`` are their domains with the person's belief floored at one typical
     step's change (the same fitted model) and PrefBias's belief posterior at 0.001 a weight; nothing else moves."""
     for seen, base in (("hopper-fixed-seen", "hopper-fixed"), ("cheetah-seen", "cheetah")):
@@ -347,18 +346,20 @@ def test_the_seen_domains_floor_the_person_s_belief_and_narrow_prefbias_s_poster
                 assert (pb.init_std, pb.belief_prior_std) == (0.001, 0.001) != (theirs[key].prefbias.init_std, 0.01)
                 cfg = replace(cfg, prefbias=replace(pb, init_std=0.01, belief_prior_std=0.01))
             assert cfg == theirs[key], key
+    # load_world hands the domain's floor to the fit (whose own test, tests/teachers/test_learned_belief.py, checks
+    # that it keeps the fitted model and cache entry and measures the held-out figures at it)
+    asked = []
+
+    def fit(belief_world, cfg, *, true_world, progress, min_std):
+        asked.append(min_std)
+        return SimpleNamespace(min_std=min_std), {"belief_env": belief_world.name}
+
+    monkeypatch.setattr(pg, "fit_learned_belief", fit)
+    monkeypatch.setattr(pg, "with_learned_belief", lambda world, name, belief: (world, belief))
     fast = pg.preset("fast")
-    world, record = pg.load_world("hopper-fixed-seen", fast)
-    plain, plain_record = pg.load_world("hopper-fixed", fast)
-    belief, plain_belief = (next(iter(w.beliefs.values())) for w in (world, plain))
-    assert float(belief.min_std) == 1.0 and float(plain_belief.min_std) == np.float32(fast.belief_fit.dynamics.min_std)
-    assert record["person_min_std"] == 1.0 and "person_min_std" not in plain_record
-    assert record["path"] == plain_record["path"]  # one fit, one cache entry
-    same = jax.tree.map(lambda x, y: bool(np.array_equal(x, y)), belief.model, plain_belief.model)
-    assert all(jax.tree.leaves(same))
-    # a blunter person finds what happens less surprising, and her held-out fit is measured at her floor
-    assert record["true_below_floor"] <= plain_record["true_below_floor"]
-    assert record["held_out_log_lik"] != plain_record["held_out_log_lik"]
+    (_, belief), _ = pg.load_world("hopper-fixed-seen", fast)
+    pg.load_world("hopper-fixed", fast)
+    assert asked == [1.0, None] and belief.min_std == 1.0
 
 
 @pytest.mark.slow
