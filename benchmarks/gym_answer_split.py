@@ -46,6 +46,8 @@ from mindgap.teachers.preference import TeacherConfig
 
 NOISY = ("hopper", "cheetah", "hopper-fixed", "hopper-fixed-seen", "cheetah-seen")
 """The domains whose truth is hidden noise (the lander's is a wind)."""
+HOSTS = [name for name, d in gym.DOMAINS.items() if d.runtime == "host"]
+"""The gym experiment's domains on the host loop (the ones with a learned belief)."""
 SEGMENT = 10
 """Steps per window: a query segment of the full preset."""
 
@@ -87,7 +89,9 @@ def _noise(text: str) -> tuple[float, float]:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument(
-        "--world", default="cheetah", help="a host domain of the gym experiment: hopper, cheetah, lunar, hopper-fixed, hopper-fixed-seen, cheetah-seen"
+        "--world",
+        default="cheetah",
+        help=f"a host domain of the gym experiment: {', '.join(HOSTS)}",
     )
     p.add_argument(
         "--noise",
@@ -115,7 +119,7 @@ def main() -> None:
     )
     args = p.parse_args()
     if args.world not in gym.DOMAINS or gym.DOMAINS[args.world].runtime != "host":
-        sys.exit(f"gym_answer_split: no host domain {args.world!r}: choose from hopper, cheetah, lunar, hopper-fixed, hopper-fixed-seen, cheetah-seen")
+        sys.exit(f"gym_answer_split: no host domain {args.world!r}: choose from {', '.join(HOSTS)}")
     if args.steps < 10 * SEGMENT:
         sys.exit(f"gym_answer_split: --steps must be at least {10 * SEGMENT}")
     cfg = gym.preset("full")

@@ -166,8 +166,8 @@ measurements: docs/experiments/gym.md, "The person as she sees the robot"):
   not that she can tell apart outcomes a hundredth of a step apart: with the fit's floor her belief's
   half of Eq. 3.5 spreads 12 times as widely as her reward's over a window of random steps and decides
   nearly every answer alone, so that no learner (PrefBias told her belief included) finds r_H in her
-  answers; with one step's change it spreads 1.4 (hopper) and 1.2 (cheetah) times as widely, and
-  both halves count;
+  answers; with one step's change it spreads 1.4 (hopper) and 1.6 (cheetah) times as widely
+  (``benchmarks/gym_answer_split.py --world hopper-fixed-seen``), and both halves count;
 * PrefBias's belief posterior at 0.001 a weight (``init_std`` and ``belief_prior_std``): at the preset's
   0.01 one posterior draw of f_φ moves a window's Σ log f_φ by 91 (hopper) and 111 (cheetah) nats, 8 and
   20 times Σ r_H's spread over the windows, against SPEC's condition that the draws stay well inside what

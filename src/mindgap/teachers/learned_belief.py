@@ -209,6 +209,8 @@ def fit_learned_belief(
         ``true_log_lik`` and ``true_below_floor``, the same on the true env's transitions).
     """
     cfg.check()
+    if min_std is not None and not (isinstance(min_std, (int, float)) and min_std > 0):
+        raise ValueError(f"a person's floor on her belief's spread must be positive, got {min_std!r}")
     if true_world is not None:
         _same_spaces(true_world, belief_world)
     path = cache_root(cache_dir) / "learned_belief" / f"{cache_key(belief_world, cfg)}.npz"
@@ -237,8 +239,6 @@ def fit_learned_belief(
         save_pytree(path, belief)
         atomic_write(path.with_suffix(".json"), json.dumps(record, indent=2))
     if min_std is not None:
-        if not (isinstance(min_std, (int, float)) and min_std > 0):
-            raise ValueError(f"a person's floor on her belief's spread must be positive, got {min_std!r}")
         belief = belief._replace(min_std=jnp.float32(min_std))
         record = {**record, "person_min_std": float(min_std)}
         held = collect(belief_world, cfg.held_out, cfg.seed + 1)
