@@ -16,8 +16,11 @@ PrefBias the learner's r_w and log f_φ (Eq. 3.5) and for the simulated person r
 floor) (their absorbing steps score 0 and r_abs), with the spread of each of the person's two halves
 over the buffer's steps and over its consecutive windows of a query segment's length (the person
 scores sums over segments), and r_w's correlation with the second (which of the two the person's
-answers follow, and whether r_w learned the belief's half instead of the reward's). The seed's final
-greedy return is the record's.
+answers follow, and whether r_w learned the belief's half instead of the reward's). For PrefBias also
+whether its belief network learned the person's belief: the spread of Σ log f_φ over the same windows
+(f_φ at the posterior mean, unfloored) and its windows' correlation with the person's Σ max(log T_H,
+floor), beside the same correlation for f_ψ, the centre of its prior (what f_φ would say had the answers
+taught it nothing). The seed's final greedy return is the record's.
 
     python benchmarks/gym_learned_reward.py --job hopper/prefbias-q200 [--root results/gym] [--seeds 0 1 2 3 4]
     python benchmarks/gym_learned_reward.py --job hopper-fixed/prefbias-q800 --root results/gym-hopper-fixed
@@ -106,7 +109,25 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
             jax.jit(lambda o, a, o2: belief_log_prob(phi, post.norm, o, a, o2, min_std, post.log_unit)), obs, act, nxt
         )
         row["log_f_alive"] = float(log_f[~ended].mean())
+        # whether f_φ moved towards the person's belief: its windows' sums against hers, beside f_ψ's (the prior's centre)
+        dyn = carry.model.dynamics
+        log_psi = _chunked(
+            jax.jit(lambda o, a, o2: belief_log_prob(dyn.params, dyn.norm, o, a, o2, min_std, post.log_unit)),
+            obs,
+            act,
+            nxt,
+        )
+        seg = job.cfg.segment
+        row["sd_seg_log_f"] = window_spread(log_f, seg)
+        row["corr_seg_log_f"] = window_corr(log_f, scored, seg)
+        row["corr_seg_log_f_psi"] = window_corr(log_psi, scored, seg)
     return row
+
+
+def window_corr(x: np.ndarray, y: np.ndarray, length: int) -> float:
+    """The correlation of ``x``'s and ``y``'s sums over the same consecutive windows of ``length`` steps."""
+    n = len(x) - len(x) % length
+    return float(np.corrcoef(x[:n].reshape(-1, length).sum(1), y[:n].reshape(-1, length).sum(1))[0, 1])
 
 
 def main() -> None:
@@ -143,6 +164,9 @@ def main() -> None:
         "corr_log_T_H",
         "sd_seg_r_H",
         "sd_seg_log_T_H",
+        "sd_seg_log_f",
+        "corr_seg_log_f",
+        "corr_seg_log_f_psi",
     ]
     print(" | ".join(cols))
     for s in seeds:
