@@ -40,14 +40,15 @@ from gym_learned_reward import window_spread
 from mindgap.envs.gym_world import gym_world_from_spec
 from mindgap.envs.interface import EnvError
 from mindgap.experiments import prefbias_gym as gym
+from mindgap.experiments.gym_claims import figure_domain
 from mindgap.models.gaussian_dynamics import predict
 from mindgap.teachers.learned_belief import collect, fit_learned_belief, learned_log_prob
 from mindgap.teachers.preference import TeacherConfig
 
-NOISY = ("hopper", "cheetah", "hopper-fixed", "hopper-fixed-seen", "cheetah-seen")
-"""The domains whose truth is hidden noise (the lander's is a wind)."""
 HOSTS = [name for name, d in gym.DOMAINS.items() if d.runtime == "host"]
 """The gym experiment's domains on the host loop (the ones with a learned belief)."""
+NOISY = tuple(name for name in HOSTS if figure_domain(name) in ("hopper", "cheetah"))
+"""The host domains whose truth is hidden noise (the lander's is a wind)."""
 SEGMENT = 10
 """Steps per window: a query segment of the full preset."""
 

@@ -54,10 +54,15 @@ def _chunked(fn, *arrays, size: int = 20_000) -> np.ndarray:
     return np.concatenate([np.asarray(fn(*(a[i : i + size] for a in arrays))) for i in range(0, n, size)])
 
 
+def window_sums(x: np.ndarray, length: int) -> np.ndarray:
+    """``x``'s sums over consecutive windows of ``length`` steps (a query segment's), the last partial one dropped."""
+    n = len(x) - len(x) % length
+    return x[:n].reshape(-1, length).sum(1)
+
+
 def window_spread(x: np.ndarray, length: int) -> float:
     """The standard deviation of ``x``'s sums over consecutive windows of ``length`` steps (a query segment's)."""
-    n = len(x) - len(x) % length
-    return float(x[:n].reshape(-1, length).sum(1).std())
+    return float(window_sums(x, length).std())
 
 
 def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
@@ -126,8 +131,7 @@ def seed_row(world, job: pc.Job, cfg, root: Path, seed: int) -> dict | None:
 
 def window_corr(x: np.ndarray, y: np.ndarray, length: int) -> float:
     """The correlation of ``x``'s and ``y``'s sums over the same consecutive windows of ``length`` steps."""
-    n = len(x) - len(x) % length
-    return float(np.corrcoef(x[:n].reshape(-1, length).sum(1), y[:n].reshape(-1, length).sum(1))[0, 1])
+    return float(np.corrcoef(window_sums(x, length), window_sums(y, length))[0, 1])
 
 
 def main() -> None:

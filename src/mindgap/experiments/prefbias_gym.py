@@ -347,11 +347,11 @@ def jobs(cfg: GymConfig) -> list[pc.Job]:
     domains) SAC's level job."""
     out = []
     for w in cfg.worlds:
-        domain(w)
+        d = domain(w)
         n = _steps(cfg, w)
         lc = cfg.learners
         learn = pc.Learners(*(replace(c, total_steps=n) for c in (lc.prefbias, lc.pebble, lc.sac)))
-        if (s := domain(w).belief_std) is not None:
+        if (s := d.belief_std) is not None:
             pb = replace(learn.prefbias.prefbias, init_std=s, belief_prior_std=s)
             learn = replace(learn, prefbias=replace(learn.prefbias, prefbias=pb))
         out.append(pc.Job(f"{w}/reference", w, "reference", "reference", cfg.reference, {}))

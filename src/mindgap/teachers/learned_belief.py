@@ -214,6 +214,7 @@ def fit_learned_belief(
     if true_world is not None:
         _same_spaces(true_world, belief_world)
     path = cache_root(cache_dir) / "learned_belief" / f"{cache_key(belief_world, cfg)}.npz"
+    held = None  # the belief env's held-out steps, once collected
     if path.is_file() and path.with_suffix(".json").is_file():
         belief, record = load_learned_belief(path)
     else:
@@ -241,7 +242,7 @@ def fit_learned_belief(
     if min_std is not None:
         belief = belief._replace(min_std=jnp.float32(min_std))
         record = {**record, "person_min_std": float(min_std)}
-        held = collect(belief_world, cfg.held_out, cfg.seed + 1)
+        held = held if held is not None else collect(belief_world, cfg.held_out, cfg.seed + 1)
         record["held_out_log_lik"], record["held_out_below_floor"] = _quality(belief, held)
     if true_world is not None:
         record["true_env"] = true_world.name
