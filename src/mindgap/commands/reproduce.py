@@ -74,6 +74,14 @@ def add_parser(sub) -> None:
         "resumable; the job's record is assembled once every seed has run",
     )
 
+    r.add_argument(
+        "--reuse",
+        type=Path,
+        metavar="DIR",
+        help="gym: with --job KEY of a job the person never enters (SAC), take its record from the run folder DIR, "
+        "where the same robot ran with this configuration, instead of training it again",
+    )
+
     from . import sweep
 
     sweep.add_backend_flags(r)
@@ -91,6 +99,10 @@ def run(args) -> int:
         raise ValueError("--job runs one job; it does not combine with --assemble or --shard")
     if args.seed is not None:
         check_seed(args)
+    if args.reuse is not None and (
+        args.name != "gym" or not args.job or args.seed or args.assemble or args.fresh or args.backend
+    ):
+        raise ValueError("--reuse goes with gym and --job KEY alone (not --seed, --assemble, --fresh or --backend)")
     for flag in ("worlds", "env"):
         if getattr(args, flag) and args.name not in TERRAIN_EXPERIMENTS:
             raise ValueError(f"--{flag} belongs to the terrain experiments ({', '.join(TERRAIN_EXPERIMENTS)})")

@@ -4,6 +4,7 @@ hopper-fixed-seen, cheetah-seen, hopper-mjx, cheetah-mjx; :mod:`~.prefbias_gym`)
 
 mindgap reproduce nav [--fast] [--seeds N] [--worlds W,W | --env SPEC …] [--method NAME …] [--out DIR] [--fresh] [--quiet] [--assemble]
 mindgap reproduce gym --out DIR --job KEY --seed I     # seed I of one learner job alone (nav, priors, sampling, gym)
+mindgap reproduce gym --out DIR --job KEY --reuse SRC  # a job the person never enters, from a run of the same robot
 
 ``--fast`` is the quick preset (1 seed, 1500 steps, tiny networks: a dry run and the tests'
 preset, not results); without it the full one (the PrefBias experiments: 5 seeds, 50 000
@@ -67,5 +68,9 @@ def reproduce(args) -> int:
     kw = dict(fresh=args.fresh, progress=not args.quiet, assemble_only=getattr(args, "assemble", False), only=only)
     if getattr(args, "seed", None) is not None:
         kw["seed_ids"] = tuple(args.seed)
+    if getattr(args, "reuse", None) is not None:  # gym only: mindgap reproduce refuses it for the others
+        from ..experiments import gym_reuse
+
+        return print_run(gym_reuse.reuse(cfg, out, only, args.reuse, progress=not args.quiet), out, only)
     summary = module.run(cfg, out, **kw)
     return print_run(summary, out, only)
