@@ -72,7 +72,7 @@ def stand_ins(monkeypatch):
         return _fake_result(cfg, seeds, cfg.method, level)
 
     def fake_fit(belief_world, cfg, *, true_world=None, **kw):
-        calls.append(("fit", belief_world.name, cfg.transitions, ()))
+        calls.append(("fit", belief_world.name, cfg.transitions, (kw.get("cache_dir"),)))
         # the fields of learned_belief.fit_learned_belief's record
         record = dict(
             belief_env=belief_world.name, config={"dynamics": {"hidden": [8, 8]}}, transitions=cfg.transitions
@@ -116,7 +116,8 @@ def test_gym_fast_on_the_lander_writes_curves_results_claims_and_resumes(stand_i
         ("prefbias", windy, 30, (vacuum,)),
         ("sac-level", vacuum, 0, ()),
     ]
-    assert {c[1] for c in stand_ins if c[0] == "fit"} == {vacuum}
+    # every job's person is fitted in (or read from) the run's own folder: one person on any machine
+    assert {(c[1], c[3]) for c in stand_ins if c[0] == "fit"} == {(vacuum, (out,))}
     assert len(list((out / "jobs").glob("*.json"))) == 5  # and the reference
     results = {r["method"]: r for r in rows(out / "results.csv")}
     assert set(results) == {"prefbias", "pebble", "sac", "sac-level"}
@@ -350,7 +351,7 @@ def test_the_seen_domains_floor_the_person_s_belief_and_narrow_prefbias_s_poster
     # that it keeps the fitted model and cache entry and measures the held-out figures at it)
     asked = []
 
-    def fit(belief_world, cfg, *, true_world, progress, min_std):
+    def fit(belief_world, cfg, *, true_world, progress, min_std, cache_dir):
         asked.append(min_std)
         return SimpleNamespace(min_std=min_std), {"belief_env": belief_world.name}
 
@@ -379,3 +380,17 @@ def test_gym_fast_for_real(tmp_path, capsys, monkeypatch):
     for w in ("lunar", "hopper", "cheetah"):
         assert (out / f"rollouts/{w}__prefbias-q30.gif").stat().st_size > 0
         assert (out / f"curves_{w}.png").stat().st_size > 0
+
+
+def test_a_job_whose_person_is_not_the_reference_s_is_refused():
+    """The person's belief fitted on another number of cores is another model (docs/experiments/gym.md, "The person's
+    fit and the machine"): a job is refused before it trains unless its belief's figures are the reference's."""
+    ran = {"held_out_log_lik": 33.94292449951172, "true_log_lik": 15.3, "path": "/there/e320.npz"}
+    here = {**ran, "path": "/here/e320.npz", "config": {"seed": 0}}
+    gm.check_person("hopper-fixed", here, {"belief_model": ran})  # the same model, another machine's file
+    gm.check_person("hopper-fixed", here, None)  # no reference yet
+    gm.check_person("hopper-mjx", None, {"belief_model": None})  # an exact belief
+    with pytest.raises(ValueError) as e:
+        gm.check_person("hopper-fixed", {**here, "held_out_log_lik": 34.048423767089844}, {"belief_model": ran})
+    assert str(e.value).count("\n") == 0 and "34.048423767089844 against 33.94292449951172" in str(e.value)
+    assert "/here/e320.npz" in str(e.value)

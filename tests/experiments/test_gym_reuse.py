@@ -46,7 +46,7 @@ def source(tmp_path, monkeypatch):
     }
     folder.save("hopper-fixed/sac", record)
 
-    def load_world(name, cfg, progress=False):
+    def load_world(name, cfg, progress=False, cache_dir=None):
         return None, {"held_out_log_lik": 3.0, "person_min_std": pg.domain(name).person_min_std, "config": {}}
 
     monkeypatch.setattr(gr, "load_world", load_world)

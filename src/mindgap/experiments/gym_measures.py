@@ -91,6 +91,33 @@ def reference_record(world, name: str, cfg, belief: dict | None) -> dict:
     }
 
 
+def check_person(name: str, belief: dict | None, ref: dict | None) -> None:
+    """Refuse to train on ``name`` with a person other than the one its reference job recorded.
+
+    A job's person is the learned belief fitted (or read from the cache) on the machine that runs it.
+    The fit is not bit for bit the same on every number of CPU cores (XLA splits its sums by thread):
+    the noisy hopper's fitted on one core scores 34.048 on its held-out transitions, on two 33.943,
+    and its answers differ accordingly (docs/experiments/gym.md, "The person's fit and the machine").
+    A run's seeds are one sample only with one person, so a job whose belief's figures differ from the
+    reference record's is refused before it trains (nothing to check without a reference record or a
+    learned belief).
+
+    Raises:
+        ValueError: the figures differ (one line: both held-out figures and the cache file to replace).
+    """
+    ran = (ref or {}).get("belief_model")
+    if belief is None or not ran:
+        return
+    ours = {k: v for k, v in belief.items() if k not in ("config", "path")}
+    theirs = {k: v for k, v in ran.items() if k != "path"}
+    if ours != theirs:
+        raise ValueError(
+            f"{name}: the person's belief here is not the one the run's reference recorded (held-out log-likelihood "
+            f"{ours.get('held_out_log_lik')} against {theirs.get('held_out_log_lik')}; a fit on another number of "
+            f"CPU cores rounds differently): replace {belief.get('path')} with the file the run was fitted in"
+        )
+
+
 def belief_line(ref: dict | None) -> str | None:
     """The person's learned believed dynamics as the reference job measured them, in one line: the
     mean log-likelihood per held-out transition of the belief env, the share of those below the

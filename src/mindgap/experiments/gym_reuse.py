@@ -31,6 +31,7 @@ from pathlib import Path
 from . import prefbias_common as pc
 from . import registry
 from ._runfolder import RunFolder, partial_seeds, record_path, same_config
+from .gym_measures import check_person
 from .prefbias_gym import domain, jobs, load_world
 
 PERSONLESS = ("sac",)
@@ -85,7 +86,8 @@ def reuse(cfg, out: Path, key: str, source: Path, *, progress: bool = False) -> 
         raise ValueError(f"--reuse: {out} has a record of {job.key} already")
     if partial_seeds(out, job.key):
         raise ValueError(f"--reuse: {out} has seeds of {job.key} trained apart; finish them with --job {job.key}")
-    _, belief = load_world(job.world, cfg, progress=progress)
+    _, belief = load_world(job.world, cfg, progress=progress, cache_dir=folder.root)
+    check_person(job.world, belief, folder.done(f"{job.world}/reference"))
     record = {
         **base,
         "key": job.key,

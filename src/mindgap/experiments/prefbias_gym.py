@@ -60,7 +60,7 @@ from . import prefbias_common as pc
 from . import world_measures as wm
 from ._runfolder import to_jsonable, write_csv
 from .gym_claims import LEVELS, NO_X, domain_claims, figure_domain
-from .gym_measures import belief_line, job_costs, reference_record, reward_error
+from .gym_measures import belief_line, check_person, job_costs, reference_record, reward_error
 
 # ---------------------------------------------------------------------------------------
 # the domains
@@ -198,12 +198,15 @@ def _spec(spec: str, horizon: int | None) -> str:
     return f"{spec},max_episode_steps={horizon}" if spec.startswith("gym:") else f"{spec},horizon={horizon}"
 
 
-def load_world(name: str, cfg: GymConfig, *, progress: bool = False) -> tuple[object, dict | None]:
+def load_world(name: str, cfg: GymConfig, *, progress: bool = False, cache_dir=None) -> tuple[object, dict | None]:
     """The domain's world with its person's belief, and the learned belief's record (None on MJX).
 
     On the host loop the belief is fitted to the belief env's transitions (or read from the
     cache: :func:`~mindgap.teachers.learned_belief.fit_learned_belief`, keyed by the belief env
-    and ``cfg.belief_fit``) and scored on the true env's.
+    and ``cfg.belief_fit``) and scored on the true env's. ``cache_dir``: where the fitted model is kept
+    (None: the machine's cache). A run keeps its own (its folder's ``learned_belief/``), so that every
+    slice of it, on any machine, answers as one person: the fit is not bit for bit the same on every
+    number of CPU cores (docs/experiments/gym.md, "The person's fit and the machine").
     """
     d = domain(name)
     if d.runtime == "mjx":
@@ -211,7 +214,7 @@ def load_world(name: str, cfg: GymConfig, *, progress: bool = False) -> tuple[ob
     world = gym_world_from_spec(_spec(d.env, cfg.horizon))
     belief_world = gym_world_from_spec(_spec(d.belief_env, cfg.horizon))
     belief, record = fit_learned_belief(
-        belief_world, cfg.belief_fit, true_world=world, progress=progress, min_std=d.person_min_std
+        belief_world, cfg.belief_fit, true_world=world, progress=progress, min_std=d.person_min_std, cache_dir=cache_dir
     )
     return with_learned_belief(world, record["belief_env"], belief), record
 
@@ -396,9 +399,10 @@ def run(cfg: GymConfig, out: Path, **kw) -> dict:
 def compute_job(folder, job: pc.Job, seeds: int, *, cfg: GymConfig, fresh: bool, progress: bool, seed_ids=None) -> dict:
     """The record of one job: the reference, a learner's training, or SAC's level run (of the seeds
     ``seed_ids`` alone: a seed slice's partial record, whose animation only seed 0's slice draws)."""
-    world, belief = load_world(job.world, cfg, progress=progress)
+    world, belief = load_world(job.world, cfg, progress=progress, cache_dir=folder.root)
     if job.method == "reference":
         return reference_record(world, job.world, cfg, belief)
+    check_person(job.world, belief, folder.done(f"{job.world}/reference"))
     kw = _kw(folder, job, fresh, progress, seed_ids)
     if job.method == "sac-level":
         level_world = gym_world_from_spec(_spec(LEVELS[job.world].env, cfg.horizon))
