@@ -3,9 +3,11 @@
 import csv
 import json
 
+import jax
+import numpy as np
 import pytest
 
-from mindgap.algorithms import engine
+from mindgap.algorithms import engine, host_loop
 from mindgap.algorithms.pbrl import fast_config, train
 from mindgap.cli import main
 from mindgap.envs.gym_world import NO_BELIEF
@@ -51,6 +53,29 @@ def test_resume_after_a_kill_gives_a_complete_curve(tmp_path, monkeypatch, capsy
     world = resolve_env(ENV)
     with pytest.raises(ValueError, match="other settings"):
         train(world, fast_config("drlhp", total_steps=750), teacher="true", out=tmp_path, progress=False)
+
+
+def test_storing_apart_gives_the_same_run_bit_for_bit(monkeypatch):
+    """An update step's transition stored by a dispatch of its own (a large buffer) or inside the update's
+    program: the same learner, buffer, curve and returns (PEBBLE, so that the stored reward is the learned one)."""
+    world, cfg = resolve_env(ENV), fast_config("pebble", total_steps=750)
+    real_store, runs = host_loop.store, []
+    for limit in (1 << 62, 0):  # never apart; always apart
+        calls = []
+        monkeypatch.setattr(host_loop, "STORE_APART_BYTES", limit)
+        monkeypatch.setattr(host_loop, "store", lambda *a, **kw: calls.append(1) or real_store(*a, **kw))
+        runs.append((train(world, cfg, teacher="true", progress=False), len(calls)))
+    (whole, none), (apart, stores) = runs
+    assert none == 0 and stores > 0
+    assert whole["curve"] == apart["curve"] and np.array_equal(whole["final_returns"], apart["final_returns"])
+    leaves = [[_host(x) for x in jax.tree.leaves(run["carry"])] for run in (whole, apart)]
+    assert len(leaves[0]) == len(leaves[1]) > 0
+    assert all(np.array_equal(a, b) for a, b in zip(*leaves, strict=True))
+
+
+def _host(x):
+    """A leaf as a NumPy array (a typed random key as its data)."""
+    return np.asarray(jax.random.key_data(x) if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key) else x)
 
 
 def test_learners_that_need_dynamics_refuse_gym_worlds(tmp_path, capsys):

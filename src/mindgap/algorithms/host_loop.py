@@ -12,7 +12,9 @@ stores the transition in the seed's replay buffer (a :class:`~mindgap.data.repla
 pytree kept on the device and donated, so feedback rounds relabel it in place), performs
 ``utd`` SAC updates (a ``lax.scan``; after every ``train_every``-th step of a chunk, a second
 compiled program without them in between), and draws the action of the next step with the updated
-actor. That is the order of Stable-Baselines3/sbx with ``train_freq=1, gradient_steps=utd``
+actor. On an update step with a large buffer (:data:`STORE_APART_BYTES`) the transition is stored by
+a dispatch of its own (:func:`store`) first: in one program XLA fuses the store into the minibatch's
+gathers and then copies the buffer's columns to keep the old rows for them, every update step. That is the order of Stable-Baselines3/sbx with ``train_freq=1, gradient_steps=utd``
 (act, step, store, update; the next action sees every update so far), and the update itself
 is :mod:`~mindgap.algorithms.sac_loop`'s, including its explore-phase k-NN state-entropy
 reward, n-step targets, training-time entropy bonus and coloured action noise.
@@ -62,7 +64,53 @@ def first_action(loop: LoopState, cfg: SACConfig, phase: str):
     return jax.vmap(lambda ls: _act(ls, cfg, phase))(loop)
 
 
-@partial(jax.jit, static_argnames=("learner", "env", "cfg", "phase", "next_phase", "update"), donate_argnames=("loop",))
+STORE_APART_BYTES = 4 << 20
+"""From this many bytes of replay buffer (all seeds' columns together), an update step stores its
+transition by a dispatch of its own (:func:`store`) before :func:`advance` updates and acts.
+
+Why: in one program XLA's CPU compiler fuses the buffer's write into the gathers of the update's
+minibatch and then copies the columns those gathers read (the next observations, the rewards, the
+terminal flags) so that the fused gathers can read the rows the write replaced: two copies of
+each, every update step, whatever the batch. On the gym preset's hopper (300,000 transitions, 34.6 MiB,
+128 × 128, an update every second step) that is 2.7 ms a step against 1.5 ms stored apart, the same
+networks bit for bit; with 20,000 and 60,000 transitions (2.3 and 6.9 MiB) the two are within 1%
+(``benchmarks/host_loop_store.py``; docs/benchmarks.md, "The replay buffer's copies"). The results do
+not depend on it: the same stores, gathers and updates in the same order."""
+
+
+def _store_one(ls: LoopState, model, w: WorldArgs, a, o2, r_env, term, *, learner: Learner, env: Env, cfg, phase):
+    """One seed's replay buffer with the step's transition stored (its reward the learned one in ``train``)."""
+    reward_fn, reward_params, absorbing_fn = learner.reward(model, w, env, cfg)
+    r = r_env
+    if phase == "train" and reward_fn is not None:
+        r = reward_fn(reward_params, ls.env[None], a[None], o2[None])[0]
+        if absorbing_fn is not None:
+            gamma = learner.agent_sac(cfg).gamma
+            r = r + jnp.where(term, terminal_bonus(absorbing_fn(reward_params, o2[None])[0], gamma), 0.0)
+    return replay_add(ls.replay, ls.env, a, o2, r_env, r, term, ls.t)
+
+
+@partial(jax.jit, static_argnames=("learner", "env", "cfg", "phase"), donate_argnames=("loop",))
+def store(loop: LoopState, model, w: WorldArgs, act, next_obs, env_reward, terminated, *, learner, env, cfg, phase):
+    """Every seed's transition stored in its buffer, nothing else (:data:`STORE_APART_BYTES`); then
+    :func:`advance` with ``stored=True``."""
+
+    def one(ls, model, a, o2, r_env, term):
+        return _store_one(ls, model, w, a, o2, r_env, term, learner=learner, env=env, cfg=cfg, phase=phase)
+
+    return loop._replace(replay=jax.vmap(one)(loop, model, act, next_obs, env_reward, terminated))
+
+
+def store_apart(loop: LoopState) -> bool:
+    """Whether update steps store their transition by a dispatch of their own (:data:`STORE_APART_BYTES`)."""
+    return sum(x.nbytes for x in jax.tree.leaves(loop.replay)) >= STORE_APART_BYTES
+
+
+@partial(
+    jax.jit,
+    static_argnames=("learner", "env", "cfg", "phase", "next_phase", "update", "stored"),
+    donate_argnames=("loop",),
+)
 def advance(
     loop: LoopState,
     model,
@@ -80,9 +128,11 @@ def advance(
     phase: str,
     next_phase: str,
     update: bool = True,
+    stored: bool = False,
 ):
-    """Store every seed's transition, update its SAC (unless ``update`` is off: the steps between
-    updates of ``SACConfig.train_every``), and draw its next action (all ``[S, ·]``).
+    """Store every seed's transition (unless ``stored``: :func:`store` did), update its SAC (unless
+    ``update`` is off: the steps between updates of ``SACConfig.train_every``), and draw its next
+    action (all ``[S, ·]``).
 
     ``reset_obs``: the observation the next step starts from (a fresh episode's where the
     step ended one, else ``next_obs``).
@@ -90,13 +140,8 @@ def advance(
     sac_cfg = learner.agent_sac(cfg)
 
     def one(ls: LoopState, model, a, o2, r_env, term, trunc, o_reset):
-        reward_fn, reward_params, absorbing_fn = learner.reward(model, w, env, cfg)
-        r = r_env
-        if phase == "train" and reward_fn is not None:
-            r = reward_fn(reward_params, ls.env[None], a[None], o2[None])[0]
-            if absorbing_fn is not None:
-                r = r + jnp.where(term, terminal_bonus(absorbing_fn(reward_params, o2[None])[0], sac_cfg.gamma), 0.0)
-        replay = replay_add(ls.replay, ls.env, a, o2, r_env, r, term, ls.t)
+        kw = dict(learner=learner, env=env, cfg=cfg, phase=phase)
+        replay = ls.replay if stored else _store_one(ls, model, w, a, o2, r_env, term, **kw)
         key, k_upd = jax.random.split(ls.key)
         sac = ls.sac
         if phase != "random" and update:
@@ -212,12 +257,16 @@ def run_host(
             loop, live["act"] = first_action(loop, sac_cfg, phase)
             c = c._replace(loop=loop)
         envs, act, loop = live["envs"], live["act"], c.loop
+        apart = phase != "random" and store_apart(loop)
+        kw = dict(learner=learner, env=env, cfg=cfg, phase=phase)
         for i in range(cfg.chunk):
             nxt, rew, term, trunc, start = envs.step(np.asarray(act))
+            update = (i + 1) % sac_cfg.train_every == 0
+            if stored := apart and update:
+                loop = store(loop, c.model, w, act, nxt, rew, term, **kw)
             loop, act = advance(
                 loop, c.model, w, act, nxt, rew, term, trunc, start,
-                learner=learner, env=env, cfg=cfg, phase=phase, next_phase=phase_at(step + i + 1, cfg),
-                update=(i + 1) % sac_cfg.train_every == 0,
+                next_phase=phase_at(step + i + 1, cfg), update=update, stored=stored, **kw,
             )  # fmt: skip
         live["act"] = act
         return c._replace(loop=loop)
