@@ -12,12 +12,13 @@ stores the transition in the seed's replay buffer (a :class:`~mindgap.data.repla
 pytree kept on the device and donated, so feedback rounds relabel it in place), performs
 ``utd`` SAC updates (a ``lax.scan``; after every ``train_every``-th step of a chunk, a second
 compiled program without them in between), and draws the action of the next step with the updated
-actor. On an update step with a large buffer (:data:`STORE_APART_BYTES`) the transition is stored by
-a dispatch of its own (:func:`store`) first: in one program XLA fuses the store into the minibatch's
-gathers and then copies the buffer's columns to keep the old rows for them, every update step. That is the order of Stable-Baselines3/sbx with ``train_freq=1, gradient_steps=utd``
+actor. That is the order of Stable-Baselines3/sbx with ``train_freq=1, gradient_steps=utd``
 (act, step, store, update; the next action sees every update so far), and the update itself
 is :mod:`~mindgap.algorithms.sac_loop`'s, including its explore-phase k-NN state-entropy
-reward, n-step targets, training-time entropy bonus and coloured action noise.
+reward, n-step targets, training-time entropy bonus and coloured action noise. On an update step
+with a large buffer (:data:`STORE_APART_BYTES`) the transition is stored by a dispatch of its own
+(:func:`store`) first: in one program XLA fuses the store into the minibatch's gathers and then
+copies the buffer's columns to keep the old rows for them, every update step.
 
 Checkpoints hold every seed's learner state and replay buffer; gymnasium's env states cannot
 be saved, so a resumed run starts fresh episodes (seeded by the step it resumes at).
